@@ -1,0 +1,108 @@
+"""The motion contract shared by every estimator, the ground truth and the harness.
+
+Images are H x W arrays, x to the right, y down; rotations are about the image centre
+c = ((W - 1) / 2, (H - 1) / 2), as in Kang, Zhang & Park (2009): "the origin of the coordinate in
+each frame is the centre of the image".
+
+``Motion(angle_deg, dx, dy)`` says how the *current* frame is displaced from the *reference*:
+warping the reference with ``A = cv2.getRotationMatrix2D(c, angle_deg, 1.0)`` and ``(dx, dy)``
+added to A's last column yields the current frame. Positive angles are counter-clockwise as
+displayed (OpenCV's convention). Compensation applies the inverse warp to the current frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+#: Status of an estimate that succeeded.
+OK = "ok"
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Rigid image motion of the current frame relative to the reference.
+
+    Attributes:
+        angle_deg: rotation about the image centre, degrees, counter-clockwise positive.
+        dx, dy: translation in pixels added after the rotation (x right, y down).
+        status: ``"ok"`` when the values are an estimate; otherwise a short machine-readable
+            reason (for example ``"no_structure"``) and the values are NaN.
+        diagnostics: what the estimator saw, for inspection (method specific).
+    """
+
+    angle_deg: float
+    dx: float
+    dy: float
+    status: str = OK
+    diagnostics: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+    @classmethod
+    def failed(cls, status: str, **diagnostics: Any) -> "Motion":
+        """A Motion that carries no estimate, only the reason why."""
+        if status == OK:
+            raise ValueError("a failed Motion needs a status other than 'ok'")
+        return cls(math.nan, math.nan, math.nan, status, dict(diagnostics))
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        return (self.angle_deg, self.dx, self.dy)
+
+
+def image_centre(shape: tuple[int, ...]) -> tuple[float, float]:
+    """Centre of rotation ((W - 1) / 2, (H - 1) / 2) of an image of the given shape."""
+    height, width = shape[:2]
+    return ((width - 1) / 2.0, (height - 1) / 2.0)
+
+
+def motion_matrix(motion: Motion, shape: tuple[int, ...]) -> np.ndarray:
+    """The 2 x 3 affine matrix that maps reference pixel coordinates to current ones."""
+    matrix = cv2.getRotationMatrix2D(image_centre(shape), float(motion.angle_deg), 1.0)
+    matrix[0, 2] += motion.dx
+    matrix[1, 2] += motion.dy
+    return matrix
+
+
+def apply_motion(
+    image: np.ndarray, motion: Motion, interpolation: int = cv2.INTER_NEAREST
+) -> np.ndarray:
+    """Warp ``image`` by ``motion`` (reference -> current); uncovered pixels become 0 (invalid).
+
+    Nearest-neighbour interpolation by default, because disparity values must not be blended
+    across depth edges.
+    """
+    height, width = image.shape[:2]
+    return cv2.warpAffine(
+        image, motion_matrix(motion, image.shape), (width, height),
+        flags=interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=0,
+    )
+
+
+def compensate(
+    frame: np.ndarray, motion: Motion, interpolation: int = cv2.INTER_NEAREST
+) -> np.ndarray:
+    """Stabilize ``frame``: undo ``motion`` so the frame lines up with the reference.
+
+    A failed Motion (no estimate) leaves the frame as it is, returned as a copy.
+    """
+    if not motion.ok:
+        return np.array(frame, copy=True)
+    height, width = frame.shape[:2]
+    return cv2.warpAffine(
+        frame, motion_matrix(motion, frame.shape), (width, height),
+        flags=interpolation | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=0,
+    )
+
+
+def wrap_angle_deg(angle: np.ndarray | float, period: float = 360.0):
+    """Wrap angles (degrees) into (-period/2, period/2]."""
+    half = period / 2.0
+    return half - np.mod(half - np.asarray(angle, dtype=np.float64), period)
