@@ -1,0 +1,174 @@
+"""ICP peer (Kang et al. 2009, Table I "ICP"; Besl & McKay 1992): 2-D point-to-point ICP.
+
+The depth image's structure is its edge set: Canny edges of the disparity image (depth
+discontinuities and creases), excluding the step to invalid pixels (0 = no measurement). Edge
+pixels of the current frame are matched to their nearest reference edge pixel (a
+``scipy.spatial.cKDTree`` built once on the reference) and the closed-form rigid fit about the
+image centre is solved on the matches, until the stopping rule: at most ``max_iterations``, or
+an iteration that changes the angle by less than ``tolerance_deg`` and the translation by less
+than ``tolerance_px``.
+
+Partial overlap (parts of the scene leave or enter the view): matches farther than
+``max_distance_px`` are not correspondences, and optionally only the closest ``overlap``
+fraction of the rest is kept (trimmed ICP, Chetverikov et al. 2002). The default keeps all gated
+matches: on disparity scenes, trimming the farthest matches early drops exactly the points
+whose residuals reveal a rotation error, and the fit stalls at a wrong angle.
+
+Initialisation: ICP converges only from near the answer, so it is run from several starts
+(:func:`stabilizer.peers.common.coarse_starts`): the translation from windowed phase
+correlation of the two frames, then zero translation, each with the angles ``start_angles_deg``
+(default 0, -10, +10 degrees). A run is scored by its inlier fraction, the share of current edge
+points within ``inlier_px`` of a reference edge point after the fit; the search stops at the
+first run scoring at least ``accept_fraction``, else the best run wins. The paper's ICP is a
+plain one; this is the standard robust (gated, multi-start) variant. A run that used all
+``max_iterations`` is still an estimate when it fits (diagnostic ``converged`` is False):
+point-to-point ICP's tail converges slowly.
+
+Statuses (``Motion.status``) besides ``"ok"``:
+    ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
+    ``flat_reference`` / ``flat_current``: all valid pixels have one value.
+    ``too_few_edge_points``: fewer than ``min_points`` edge pixels in a frame.
+    ``too_few_correspondences``: from every start, fewer than ``min_points`` matches fell
+        within the distance gate.
+    ``poor_fit``: the best run's inlier fraction is below ``min_fraction`` (ICP settled in a
+        wrong local minimum from every start).
+
+Diagnostics: ``n_reference_points``, ``n_points``, ``n_correspondences``, ``iterations``,
+``converged``, ``residual_px`` (RMS distance of the last matches), ``inlier_fraction``,
+``start_angle_deg``, ``starts`` (runs made).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+from stabilizer.motion import Motion
+from stabilizer.peers.common import (coarse_starts, fit_rigid, frame_problem, transform_points,
+                                     valid_interior, zero_mean_float)
+
+
+class IcpEstimator:
+    """Rigid motion by gated point-to-point ICP on edge points, reference analysed once.
+
+    Args:
+        reference: uint8 disparity-like image (0 = invalid).
+        canny_low, canny_high: hysteresis thresholds of ``cv2.Canny`` on the disparity image.
+            Defaults 20 and 40 (a depth step of a few gray levels).
+        border_margin_px: edge pixels closer than this to invalid pixels are dropped. Default 2.
+        max_points: current-frame edge pixels used, subsampled evenly. Default 1500.
+        max_distance_px: matches farther than this are not correspondences. Default 20.
+        overlap: fraction of the gated matches kept, the closest ones. Default 1.0 (all).
+        max_iterations: per start. Default 40.
+        tolerance_deg, tolerance_px: convergence when one step changes less. Defaults 0.01, 0.01.
+        start_angles_deg: initial angles, each with the two start translations. Default
+            (0, -10, 10).
+        min_points: fewest edge pixels / correspondences accepted. Default 20.
+        inlier_px: a current edge point within this of a reference one fits. Default 1.5.
+        accept_fraction: an inlier fraction that ends the search over starts. Default 0.9.
+        min_fraction: the least inlier fraction accepted as an estimate. Default 0.3.
+    """
+
+    def __init__(self, reference: np.ndarray, canny_low: float = 20.0, canny_high: float = 40.0,
+                 border_margin_px: int = 2, max_points: int = 1500,
+                 max_distance_px: float = 20.0, overlap: float = 1.0, max_iterations: int = 40,
+                 tolerance_deg: float = 0.01, tolerance_px: float = 0.01,
+                 start_angles_deg: tuple[float, ...] = (0.0, -10.0, 10.0),
+                 min_points: int = 20, inlier_px: float = 1.5, accept_fraction: float = 0.9,
+                 min_fraction: float = 0.3):
+        if not 0.0 < overlap <= 1.0:
+            raise ValueError(f"overlap must be in (0, 1]; got {overlap}")
+        if max_distance_px <= 0 or max_iterations < 1 or min_points < 2:
+            raise ValueError("need max_distance_px > 0, max_iterations >= 1 and min_points >= 2; "
+                             f"got {max_distance_px}, {max_iterations}, {min_points}")
+        if not 0.0 <= min_fraction <= accept_fraction <= 1.0:
+            raise ValueError(f"need 0 <= min_fraction <= accept_fraction <= 1; "
+                             f"got {min_fraction}, {accept_fraction}")
+        if not start_angles_deg:
+            raise ValueError("start_angles_deg must hold at least one angle")
+        self.canny_low, self.canny_high = canny_low, canny_high
+        self.border_margin_px = border_margin_px
+        self.max_points = max_points
+        self.max_distance_px = max_distance_px
+        self.overlap = overlap
+        self.max_iterations = max_iterations
+        self.tolerance_deg, self.tolerance_px = tolerance_deg, tolerance_px
+        self.start_angles_deg = tuple(start_angles_deg)
+        self.min_points = min_points
+        self.inlier_px = inlier_px
+        self.accept_fraction, self.min_fraction = accept_fraction, min_fraction
+        self._shape = reference.shape
+        self._window = cv2.createHanningWindow(reference.shape[::-1], cv2.CV_32F)
+        self._reference_problem = frame_problem(reference, "reference")
+        self._reference_float = zero_mean_float(reference)
+        self._reference_points = self._edge_points(reference, limit=None)
+        self._tree = cKDTree(self._reference_points)
+
+    def _edge_points(self, image: np.ndarray, limit: int | None) -> np.ndarray:
+        """(x, y) of the scene's edge pixels, evenly subsampled to at most ``limit``."""
+        edges = cv2.Canny(image, self.canny_low, self.canny_high)
+        edges &= valid_interior(image, self.border_margin_px)
+        ys, xs = np.nonzero(edges)
+        points = np.column_stack([xs, ys]).astype(np.float64)
+        if limit is not None and len(points) > limit:
+            points = points[np.linspace(0, len(points) - 1, limit).astype(int)]
+        return points
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        problem = self._reference_problem or frame_problem(current, "current")
+        if problem:
+            return Motion.failed(problem)
+        points = self._edge_points(current, self.max_points)
+        diagnostics = {"n_reference_points": len(self._reference_points),
+                       "n_points": len(points)}
+        if min(len(points), len(self._reference_points)) < self.min_points:
+            return Motion.failed("too_few_edge_points", **diagnostics)
+        starts = coarse_starts(self._reference_float, zero_mean_float(current), self._window,
+                               self.start_angles_deg)
+        runs = []
+        for start in starts:
+            run = self._icp(start, points)
+            if run is not None:
+                runs.append(run)
+                if run[1]["inlier_fraction"] >= self.accept_fraction:
+                    break  # a good fit: the remaining starts cannot do meaningfully better
+        diagnostics["starts"] = len(runs)
+        if not runs:
+            return Motion.failed("too_few_correspondences", **diagnostics)
+        motion, run_diagnostics = max(runs, key=lambda run: run[1]["inlier_fraction"])
+        diagnostics.update(run_diagnostics)
+        if diagnostics["inlier_fraction"] < self.min_fraction:
+            return Motion.failed("poor_fit", **diagnostics)
+        return Motion(motion.angle_deg, motion.dx, motion.dy, diagnostics=diagnostics)
+
+    def _matches(self, motion: Motion, points: np.ndarray,
+                 gate_px: float) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to, and index of, each current point's nearest reference edge point."""
+        in_reference = transform_points(motion, points, self._shape, inverse=True)
+        return self._tree.query(in_reference, distance_upper_bound=gate_px)
+
+    def _icp(self, start: Motion, points: np.ndarray) -> tuple[Motion, dict] | None:
+        """One ICP run from ``start``; None when the matches fall below ``min_points``."""
+        motion, converged = start, False
+        for iteration in range(1, self.max_iterations + 1):
+            distances, nearest = self._matches(motion, points, self.max_distance_px)
+            gated = np.flatnonzero(np.isfinite(distances))
+            keep = gated[np.argsort(distances[gated])[:int(math.ceil(self.overlap * gated.size))]]
+            if keep.size < self.min_points:
+                return None
+            updated = fit_rigid(self._reference_points[nearest[keep]], points[keep], self._shape)
+            converged = (abs(updated.angle_deg - motion.angle_deg) < self.tolerance_deg and
+                         math.hypot(updated.dx - motion.dx, updated.dy - motion.dy)
+                         < self.tolerance_px)
+            motion = updated
+            if converged:
+                break
+        final_distances, _ = self._matches(motion, points, self.inlier_px)
+        return motion, {"n_correspondences": int(keep.size), "iterations": iteration,
+                        "converged": converged,
+                        "residual_px": float(np.sqrt(np.mean(distances[keep] ** 2))),
+                        "inlier_fraction": float(np.mean(np.isfinite(final_distances))),
+                        "start_angle_deg": start.angle_deg}

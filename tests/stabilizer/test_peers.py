@@ -1,0 +1,177 @@
+"""The peer estimators (SIFT, ICP, ECC, Fourier-Mellin) against known synthetic motions.
+
+Each current frame is a synthetic disparity scene warped by a known Motion (tests/synthetic.py,
+``apply_motion``: nearest-neighbour, uncovered pixels invalid), within +-15 deg and +-40 px (the
+paper's walking peaks: x +-40 px, rotation +-12 deg). Tolerances are per method, from what each
+did on 300 such random cases (ok / accurate = within 1 deg and 2 px: sift 273 / 247,
+icp 297 / 293, ecc 296 / 296, fourier_mellin 300 / 296; medians well inside the bounds below):
+
+============== ========= =============== ==================== ====================
+method         ok of 12  accurate of 12  median |angle err|   median |shift err|
+============== ========= =============== ==================== ====================
+sift           >= 9      >= 8            <= 0.75 deg          <= 0.75 px
+icp            >= 10     >= 10           <= 0.3 deg           <= 0.3 px
+ecc            >= 11     >= 11           <= 0.15 deg          <= 0.15 px
+fourier_mellin >= 11     >= 11           <= 0.4 deg           <= 0.4 px
+============== ========= =============== ==================== ====================
+
+The sign cases (+5 deg; +10, -7 px) must come out within ``SIGN_TOLERANCE`` for every method.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from stabilizer import Motion, apply_motion, depth_to_disparity, estimate, motion_matrix
+from stabilizer.motion import wrap_angle_deg
+from stabilizer.peers.common import fit_rigid, motion_from_matrix
+from stabilizer.peers.ecc import EccEstimator
+from stabilizer.peers.fourier_mellin import FourierMellinEstimator
+from stabilizer.peers.icp import IcpEstimator
+from stabilizer.peers.sift import SiftEstimator
+from tests.synthetic import SR4000_SHAPE, make_depth_scene, random_motion
+
+ESTIMATORS = {"sift": SiftEstimator, "icp": IcpEstimator, "ecc": EccEstimator,
+              "fourier_mellin": FourierMellinEstimator}
+
+# method: (least ok of N_CASES, least accurate of N_CASES, median angle err deg, median shift
+# err px); accurate = within ACCURATE_DEG and ACCURATE_PX.
+TOLERANCES = {
+    "sift": (9, 8, 0.75, 0.75),
+    "icp": (10, 10, 0.3, 0.3),
+    "ecc": (11, 11, 0.15, 0.15),
+    "fourier_mellin": (11, 11, 0.4, 0.4),
+}
+ACCURATE_DEG, ACCURATE_PX = 1.0, 2.0
+SIGN_TOLERANCE = (1.5, 1.5)  # deg, px
+N_CASES = 12
+METHODS = sorted(ESTIMATORS)
+
+
+def _disparity(seed: int, **scene) -> np.ndarray:
+    return depth_to_disparity(make_depth_scene(seed, **scene))
+
+
+def _errors(estimated: Motion, truth: Motion) -> tuple[float, float]:
+    """(|angle error| deg, largest |shift error| px)."""
+    angle_error = abs(float(wrap_angle_deg(estimated.angle_deg - truth.angle_deg)))
+    return angle_error, max(abs(estimated.dx - truth.dx), abs(estimated.dy - truth.dy))
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_recovers_random_motions_within_tolerance(method):
+    least_ok, least_accurate, median_deg, median_px = TOLERANCES[method]
+    rng = np.random.default_rng(2024)
+    errors, statuses = [], []
+    for case in range(N_CASES):
+        reference = _disparity(500 + case)
+        truth = random_motion(rng, max_angle_deg=15.0, max_shift_px=40.0)
+        result = ESTIMATORS[method](reference).estimate(apply_motion(reference, truth))
+        statuses.append(result.status)
+        if result.ok:
+            errors.append(_errors(result, truth))
+    assert len(errors) >= least_ok, f"{method}: statuses {statuses}"
+    errors = np.array(errors)
+    accurate = (errors[:, 0] <= ACCURATE_DEG) & (errors[:, 1] <= ACCURATE_PX)
+    assert accurate.sum() >= least_accurate, errors
+    assert np.median(errors[:, 0]) <= median_deg
+    assert np.median(errors[:, 1]) <= median_px
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("truth", [Motion(5.0, 0.0, 0.0), Motion(0.0, 10.0, -7.0)],
+                         ids=["ccw_5deg", "shift_10_-7"])
+def test_signs_follow_the_motion_convention(method, truth):
+    """Through the public API: +5 deg is counter-clockwise, +x right, -y up (DESIGN.md)."""
+    reference = _disparity(3, n_objects=6)
+    result = estimate(reference, apply_motion(reference, truth), method=method)
+    assert result.ok, result.status
+    angle_error, shift_error = _errors(result, truth)
+    assert angle_error <= SIGN_TOLERANCE[0] and shift_error <= SIGN_TOLERANCE[1], result
+    if truth.angle_deg:
+        assert result.angle_deg > 0
+    else:
+        assert result.dx > 0 and result.dy < 0
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("frame, role, status", [
+    ("flat", "current", "flat_current"),
+    ("invalid", "current", "empty_current"),
+    ("flat", "reference", "flat_reference"),
+    ("invalid", "reference", "empty_reference"),
+])
+def test_degenerate_frames_give_a_status_not_an_exception(method, frame, role, status):
+    scene = _disparity(1)
+    degenerate = np.full(SR4000_SHAPE, 90 if frame == "flat" else 0, np.uint8)
+    reference, current = (scene, degenerate) if role == "current" else (degenerate, scene)
+    result = ESTIMATORS[method](reference).estimate(current)
+    assert result.status == status
+    assert all(math.isnan(value) for value in result.as_tuple())
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_featureless_valid_region_gives_a_status(method):
+    """A frame with a sliver of valid pixels, each a different value, has nothing to match."""
+    reference = _disparity(2)
+    current = np.zeros(SR4000_SHAPE, np.uint8)
+    current[70:72, 10:90] = np.arange(160, dtype=np.uint8).reshape(2, 80) + 40
+    result = ESTIMATORS[method](reference).estimate(current)
+    assert not result.ok and result.status != "ok"
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_reference_is_analysed_once_and_reused(method):
+    """One estimator serves many frames; it does not read the reference image again.
+
+    The reference array is zeroed after construction: an estimator that re-analysed it would
+    now see an empty reference. Results equal those of fresh estimators, bit for bit.
+    """
+    reference = _disparity(7)
+    motions = [Motion(4.0, 6.0, -3.0), Motion(-8.0, -15.0, 12.0), Motion(2.0, 25.0, 5.0)]
+    currents = [apply_motion(reference, motion) for motion in motions]
+    fresh = [ESTIMATORS[method](reference.copy()).estimate(current) for current in currents]
+    shared = ESTIMATORS[method](reference)
+    reference[:] = 0
+    reused = [shared.estimate(current) for current in currents]
+    assert [m.as_tuple() for m in reused] == [m.as_tuple() for m in fresh]
+    assert all(m.ok for m in reused), [m.status for m in reused]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_diagnostics_are_reported(method):
+    reference = _disparity(4)
+    result = ESTIMATORS[method](reference).estimate(apply_motion(reference, Motion(3, 5, 5)))
+    assert result.ok and result.diagnostics
+
+
+@pytest.mark.parametrize("method, params", [
+    ("sift", {"ratio": 1.5}), ("sift", {"min_inliers": 1}),
+    ("icp", {"overlap": 0.0}), ("icp", {"start_angles_deg": ()}),
+    ("ecc", {"levels": 0}), ("ecc", {"gauss_filter_size": 4}),
+    ("fourier_mellin", {"angle_bins": 2}),
+])
+def test_bad_parameters_are_value_errors(method, params):
+    with pytest.raises(ValueError):
+        ESTIMATORS[method](_disparity(0), **params)
+
+
+def test_rigid_fit_recovers_a_motion_about_the_image_centre():
+    truth = Motion(-7.5, 12.0, -3.25)
+    matrix = motion_matrix(truth, SR4000_SHAPE)
+    points = np.random.default_rng(0).uniform(0, 170, (30, 2))
+    fitted = fit_rigid(points, points @ matrix[:, :2].T + matrix[:, 2], SR4000_SHAPE)
+    np.testing.assert_allclose(fitted.as_tuple(), truth.as_tuple(), atol=1e-9)
+
+
+def test_matrix_about_the_origin_converts_to_the_centre_convention():
+    """A rotation about (0, 0), as ECC reports it, re-expressed about the image centre."""
+    about_origin = cv2.getRotationMatrix2D((0.0, 0.0), 6.0, 1.0)
+    about_origin[:, 2] += (4.0, -2.0)
+    motion = motion_from_matrix(about_origin, SR4000_SHAPE)
+    np.testing.assert_allclose(motion_matrix(motion, SR4000_SHAPE), about_origin, atol=1e-9)
+    assert motion.angle_deg == pytest.approx(6.0)
