@@ -48,6 +48,8 @@ class Frame:
         cam_pos: (3,) camera position in the world, metres.
         cam_mat: (3, 3) camera orientation, columns = camera axes in world coordinates, in
             MuJoCo's camera convention (x right, y up, looking along -z), as ``data.cam_xmat``.
+        true_depth_m: H x W float32 exact planar depth of the scene at mid-exposure (no sensor
+            effects), when the frame comes from a simulator; the ground truth uses it.
     """
 
     index: int
@@ -57,3 +59,4 @@ class Frame:
     disparity8: np.ndarray
     cam_pos: np.ndarray
     cam_mat: np.ndarray
+    true_depth_m: np.ndarray | None = None

@@ -1,0 +1,48 @@
+"""Atomic file writes: write under a temporary name in the same folder, then ``os.replace``.
+
+A reader (or a run interrupted by Ctrl-C) never sees a half-written file: the target path holds
+either the previous complete file or the new complete one (DESIGN.md, "Results are written
+atomically"). The temporary file lives in the target's folder because ``os.replace`` is atomic
+only within one file system.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+#: Permissions of a finished file (``mkstemp`` creates files readable by their owner only).
+FILE_MODE = 0o644
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success rename it to ``path``.
+
+    The caller writes the whole file to the yielded path (any library that takes a file name
+    works: matplotlib, rerun, open()). If the block raises, the temporary file is removed and
+    ``path`` is left as it was. Missing parent folders are created.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.",
+                                         suffix=".tmp")
+    os.close(handle)
+    temporary = Path(temporary)
+    try:
+        yield temporary
+        os.chmod(temporary, FILE_MODE)
+        os.replace(temporary, target)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    with atomic_path(path) as temporary:
+        temporary.write_text(text, encoding="utf-8")
+    return Path(path)
+
