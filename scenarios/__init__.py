@@ -1,0 +1,6 @@
+"""Shipped scenario files (TOML); see sim.scenario for their keys and defaults."""
+
+from pathlib import Path
+
+#: Folder of the shipped ``*.toml`` scenarios.
+SCENARIOS_DIR = Path(__file__).resolve().parent
