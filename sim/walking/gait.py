@@ -1,0 +1,104 @@
+"""Gait parameters of the walking controller, and the named presets."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    """Parameters of the ZMP-preview walking gait (HUMANOID.md, "the standard recipe").
+
+    Attributes:
+        step_period_s: duration of one step (a gait cycle is two steps), seconds.
+        double_support_ratio: fraction of a step with both feet on the floor (the ZMP moves
+            from one foot to the other during it).
+        step_length_max_m: largest forward advance per step; a forward speed command is
+            clipped to ``step_length_max_m / step_period_s``.
+        step_yaw_max_deg: largest heading change per step; a yaw-rate command is clipped to
+            ``step_yaw_max_deg / step_period_s``.
+        step_height_m: swing foot lift at mid-swing.
+        step_width_m: lateral distance between the feet centres.
+        lateral_sway_m: extra lateral offset of the ZMP reference towards the outside of the
+            support foot; it widens the body's side-to-side sway (0 = ZMP at the foot centre).
+        com_height_m: height of the centre of mass above the soles, the LIPM's z_c.
+        torso_lean_deg: forward pitch of the torso while walking; the neck tilts the head back
+            by the same angle so the camera stays level on average.
+        waist_roll_amp_deg: waist roll towards the swing side at mid-step, alternating with
+            the support foot (camera roll at the cycle frequency).
+        waist_yaw_amp_deg: waist yaw following the leading foot (camera yaw at the cycle
+            frequency), like a walker's shoulder counter-rotation.
+        head_nod_amp_deg: neck pitch at the top of each foot lift (camera pitch at the step
+            frequency); positive pitches the head down.
+        arm_swing_deg: shoulder pitch swing, opposite to the legs.
+        gyro_ankle_pitch_gain: ankle pitch correction per unit torso pitch rate, s
+            (IMU balance feedback as in the OP3/Darwin walking modules).
+        gyro_ankle_roll_gain: ankle roll correction per unit torso roll rate, s.
+        tilt_ankle_gain: ankle pitch/roll correction per radian of torso tilt away from its
+            planned attitude (IMU attitude feedback, pushes the body back over the feet).
+    """
+
+    step_period_s: float = 0.5
+    double_support_ratio: float = 0.2
+    step_length_max_m: float = 0.06
+    step_yaw_max_deg: float = 12.0
+    step_height_m: float = 0.03
+    step_width_m: float = 0.09
+    lateral_sway_m: float = 0.0
+    com_height_m: float = 0.33
+    torso_lean_deg: float = 3.0
+    waist_roll_amp_deg: float = 2.0
+    waist_yaw_amp_deg: float = 3.0
+    head_nod_amp_deg: float = 1.0
+    arm_swing_deg: float = 10.0
+    gyro_ankle_pitch_gain: float = 0.0
+    gyro_ankle_roll_gain: float = 0.03
+    tilt_ankle_gain: float = 0.3
+
+    def __post_init__(self):
+        for f in fields(self):
+            if not math.isfinite(getattr(self, f.name)):
+                raise ValueError(f"GaitParams.{f.name} must be finite, got {getattr(self, f.name)!r}")
+        positive = ("step_period_s", "step_length_max_m", "step_yaw_max_deg", "step_height_m",
+                    "step_width_m", "com_height_m")
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise ValueError(f"GaitParams.{name} must be > 0, got {getattr(self, name)!r}")
+        if not 0.0 < self.double_support_ratio < 1.0:
+            raise ValueError("GaitParams.double_support_ratio must be in (0, 1), "
+                             f"got {self.double_support_ratio!r}")
+
+    @property
+    def max_forward_speed_mps(self) -> float:
+        return self.step_length_max_m / self.step_period_s
+
+    @property
+    def max_yaw_rate_dps(self) -> float:
+        return self.step_yaw_max_deg / self.step_period_s
+
+
+#: "default": a steady, moderate gait. "paper_like": the sway-heavy gait of the paper's robot,
+#: whose head camera moves by about +-40 px in x, 2-32 px in y and +-12 deg in rotation over a
+#: gait cycle (Kang, Zhang & Park 2009, section III-B); its amplitudes were tuned against the
+#: measured camera swing (robot_models/humanoid/README.md).
+GAIT_PRESETS: dict[str, GaitParams] = {
+    "default": GaitParams(),
+    "paper_like": GaitParams(
+        step_period_s=0.5,
+        step_length_max_m=0.06,
+        waist_roll_amp_deg=10.0,
+        waist_yaw_amp_deg=9.0,
+        head_nod_amp_deg=3.0,
+        arm_swing_deg=20.0,
+    ),
+}
+
+
+def resolve_gait(gait: GaitParams | str) -> GaitParams:
+    """A GaitParams from itself or from a preset name."""
+    if isinstance(gait, GaitParams):
+        return gait
+    if gait not in GAIT_PRESETS:
+        raise ValueError(f"unknown gait {gait!r}; presets: {sorted(GAIT_PRESETS)} or a GaitParams")
+    return GAIT_PRESETS[gait]
