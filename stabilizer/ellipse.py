@@ -1,0 +1,176 @@
+"""Stage 4 of Kang, Zhang & Park (2009): orientation of point sets by direct least-squares
+ellipse fitting (Fitzgibbon, Pilu & Fisher 1999) in the numerically stable form of Halir &
+Flusser (1998), the paper's reference [3].
+
+The conic a x^2 + b xy + c y^2 + d x + e y + f = 0 minimising the algebraic distance under the
+constraint 4ac - b^2 = 1. Halir & Flusser split the design matrix into its quadratic part
+D1 = [x^2, xy, y^2] and linear part D2 = [x, y, 1]; with S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 and
+T = -S3^-1 S2', the quadratic coefficients are the eigenvector of C1^-1 (S1 + S2 T) with
+4ac - b^2 > 0, and the linear ones are T times it. Points are centred and scaled per set first.
+
+Every point set of a frame is fitted at once: the scatter matrices are sums of monomials up to
+degree four, accumulated per set with ``np.bincount``, and the 3 x 3 eigenproblems are solved as
+one stacked call. Tests check the result against ``cv2.fitEllipseDirect`` and scikit-image.
+
+Angles follow the image frame (x right, y down): the angle of the major axis is measured from +x
+toward +y, in [0, 180) degrees, as ``cv2.ellipse`` draws it. An axis has no sign, so an angle
+is only defined modulo 180 degrees; nearly circular fits carry no angle at all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stabilizer.motion import wrap_angle_deg
+
+#: Exponents (p, q) of x^p y^q in D1 = [x^2, xy, y^2] and D2 = [x, y, 1].
+_QUADRATIC = ((2, 0), (1, 1), (0, 2))
+_LINEAR = ((1, 0), (0, 1), (0, 0))
+#: Fewer points than this cannot pin down a conic (5 unknowns) with any redundancy.
+MIN_POINTS = 6
+
+
+@dataclass(frozen=True)
+class EllipseFits:
+    """Per-set results of :func:`fit_ellipses`; entries of sets with ``valid`` False are NaN.
+
+    Attributes:
+        valid: the set had enough points and its best conic is a real ellipse.
+        oriented: valid and elongated enough (axis ratio >= the threshold) to carry an angle.
+        angle_deg: angle of the major axis from +x toward +y, in [0, 180).
+        centre_x, centre_y, half_major, half_minor: the ellipse in image pixels.
+        n_points: points in each set.
+    """
+
+    valid: np.ndarray
+    oriented: np.ndarray
+    angle_deg: np.ndarray
+    centre_x: np.ndarray
+    centre_y: np.ndarray
+    half_major: np.ndarray
+    half_minor: np.ndarray
+    n_points: np.ndarray
+
+    def as_tuples(self, mask: np.ndarray | None = None) -> list[tuple[float, ...]]:
+        """(cx, cy, half_major, half_minor, angle_deg) of the valid fits (optionally masked)."""
+        keep = self.valid if mask is None else self.valid & mask
+        table = np.column_stack((self.centre_x, self.centre_y, self.half_major,
+                                 self.half_minor, self.angle_deg))[keep]
+        return [tuple(row) for row in table.tolist()]
+
+
+def _scatter(moments: np.ndarray, rows, cols) -> np.ndarray:
+    """Per-set sums of (row monomial * column monomial), shape (sets, 3, 3).
+
+    ``moments[5 p + q]`` holds the per-set sums of x^p y^q.
+    """
+    index = np.array([[5 * (pr + pc) + (qr + qc) for pc, qc in cols] for pr, qr in rows])
+    return np.moveaxis(moments[index], -1, 0)
+
+
+def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
+                 min_axis_ratio: float = 1.05, weight: np.ndarray | None = None) -> EllipseFits:
+    """Direct least-squares ellipse of every point set (Halir & Flusser), vectorised.
+
+    Args:
+        x, y: point coordinates in image pixels, shape (P,).
+        set_id: integer set index of each point, in [0, n_sets).
+        n_sets: number of sets.
+        min_axis_ratio: fits with major / minor half-axis below this are too round to orient.
+        weight: optional non-negative weight of each point in the least-squares sum.
+    """
+    set_id = np.asarray(set_id, dtype=np.intp)
+    weight = np.ones(len(x)) if weight is None else np.asarray(weight, dtype=np.float64)
+    # Sorted by set, every per-set sum is one np.add.reduceat over contiguous runs.
+    order = np.argsort(set_id, kind="stable")
+    set_id, x, y, weight = set_id[order], x[order], y[order], weight[order]
+    n_points = np.bincount(set_id, minlength=n_sets)
+    present = np.flatnonzero(n_points)
+    starts = np.concatenate(([0], np.cumsum(n_points[present])[:-1])).astype(np.intp)
+
+    def per_set(rows: np.ndarray) -> np.ndarray:
+        """Sums of each row over each set's points, shape (rows, n_sets); 0 for empty sets."""
+        sums = np.zeros((rows.shape[0], n_sets))
+        if present.size:
+            sums[:, present] = np.add.reduceat(rows, starts, axis=1)
+        return sums
+
+    total, sum_x, sum_y = per_set(np.stack((weight, weight * x, weight * y)))
+    safe_total = np.where(total > 0, total, 1.0)
+    mean_x, mean_y = sum_x / safe_total, sum_y / safe_total
+    u = x - mean_x[set_id]
+    v = y - mean_y[set_id]
+    spread = np.sqrt(per_set((weight * (u * u + v * v))[None])[0] / safe_total / 2)
+    spread = np.where(spread > 0, spread, 1.0)
+    u = u / spread[set_id]
+    v = v / spread[set_id]
+    u2, v2 = u * u, v * v
+    powers_u = np.stack((np.ones_like(u), u, u2, u2 * u, u2 * u2))
+    powers_v = np.stack((np.ones_like(v), v, v2, v2 * v, v2 * v2))
+    # Row 5p + q: weighted x^p y^q (weight folded in first: numpy is slow to broadcast it in).
+    moments = per_set(((powers_u * weight)[:, None, :] * powers_v[None, :, :]).reshape(25, -1))
+    s1 = _scatter(moments, _QUADRATIC, _QUADRATIC)
+    s2 = _scatter(moments, _QUADRATIC, _LINEAR)
+    s3 = _scatter(moments, _LINEAR, _LINEAR)
+
+    solvable = (n_points >= MIN_POINTS) & (np.abs(np.linalg.det(s3)) > 1e-9 * safe_total ** 3)
+    s3[~solvable] = np.eye(3)
+    t = -np.linalg.solve(s3, np.swapaxes(s2, 1, 2))
+    m = s1 + s2 @ t
+    # C1^-1 M with C1 = [[0, 0, 2], [0, -1, 0], [2, 0, 0]] (the constraint 4ac - b^2).
+    reduced = np.stack((m[:, 2] / 2.0, -m[:, 1], m[:, 0] / 2.0), axis=1)
+    reduced[~solvable] = np.eye(3)
+    _, vectors = np.linalg.eig(reduced)
+    vectors = vectors.real
+    constraint = 4.0 * vectors[:, 0] * vectors[:, 2] - vectors[:, 1] ** 2
+    pick = np.argmax(constraint, axis=1)
+    quadratic = np.take_along_axis(vectors, pick[:, None, None], axis=2)[:, :, 0]
+    linear = (t @ quadratic[:, :, None])[:, :, 0]
+    is_ellipse = solvable & (np.take_along_axis(constraint, pick[:, None], axis=1)[:, 0] > 0)
+    return _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_points,
+                             min_axis_ratio)
+
+
+def _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_points,
+                      min_axis_ratio) -> EllipseFits:
+    """Centre, half-axes and major-axis angle of conics fitted in normalised coordinates."""
+    sign = np.where(quadratic[:, 0] + quadratic[:, 2] < 0, -1.0, 1.0)[:, None]
+    a, b, c = (sign * quadratic).T
+    d, e, f = (sign * linear).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        det = 4.0 * a * c - b * b
+        x0 = (b * e - 2.0 * c * d) / det
+        y0 = (b * d - 2.0 * a * e) / det
+        f0 = f + (d * x0 + e * y0) / 2.0
+        root = np.sqrt(((a - c) / 2.0) ** 2 + (b / 2.0) ** 2)
+        small, large = (a + c) / 2.0 - root, (a + c) / 2.0 + root
+        half_major = np.sqrt(-f0 / small) * spread
+        half_minor = np.sqrt(-f0 / large) * spread
+    valid = is_ellipse & (small > 0) & (f0 < 0) & np.isfinite(half_major)
+    # Q = [[a, b/2], [b/2, c]]: its larger eigenvalue's axis is at atan2(b, a - c) / 2, the major
+    # axis (smaller eigenvalue) is perpendicular to it.
+    angle = np.mod(np.degrees(0.5 * np.arctan2(b, a - c)) + 90.0, 180.0)
+    nan = np.full(a.shape, np.nan)
+    oriented = valid & (half_major >= min_axis_ratio * half_minor)
+    return EllipseFits(
+        valid=valid, oriented=oriented,
+        angle_deg=np.where(valid, angle, nan),
+        centre_x=np.where(valid, x0 * spread + mean_x, nan),
+        centre_y=np.where(valid, y0 * spread + mean_y, nan),
+        half_major=np.where(valid, half_major, nan),
+        half_minor=np.where(valid, half_minor, nan),
+        n_points=n_points,
+    )
+
+
+def axis_angle_difference(reference_deg: np.ndarray, current_deg: np.ndarray) -> np.ndarray:
+    """Rotation (Motion convention, counter-clockwise as displayed) taking reference axes to
+    current axes, wrapped to (-90, 90].
+
+    In image coordinates (y down) a counter-clockwise rotation by theta lowers an axis angle
+    measured from +x toward +y by theta, so theta = reference - current; axes are undirected,
+    hence the 180-degree period.
+    """
+    return wrap_angle_deg(np.asarray(reference_deg) - np.asarray(current_deg), period=180.0)

@@ -1,0 +1,109 @@
+"""Stage 5 of Kang, Zhang & Park (2009): type-2 fuzzy thresholding of the angle estimates.
+
+Tizhoosh (Pattern Recognition 38, 2005), the paper's eq. (6): a type-1 membership function mu_T
+is shifted over the data range; its footprint of uncertainty has upper mu_U = mu^(1/alpha) and
+lower mu_L = mu^alpha, alpha in (1, 2], and the ultrafuzziness at position T is
+
+    gamma(T) = (1 / N) * sum_g h(g) * (mu_U(g) - mu_L(g)),
+
+with h the histogram of the data (here: angle estimates quantised to ``resolution_deg``).
+
+The paper then takes "two peaks ... as thresholds that get rid of the left and right noise
+values" and averages the angles between them (Fig. 7). Resolution used here (ALGORITHMS.md,
+section 5, with the triangular membership it names): mu_T is a triangle of half-width
+``bandwidth_deg`` centred at T. mu_U - mu_L vanishes where mu = 1 (at T) and where mu = 0, and
+is largest where mu ~ 0.4, so for a group of agreeing estimates gamma has one peak on each side
+of the group, about 0.6 bandwidths out. The lower threshold is the highest gamma peak at or
+below the median estimate, the upper one the highest at or above it; the rotation is the mean
+of the estimates between them. Fewer than ``min_values`` estimates, or none between the
+thresholds, fall back to the median and say so.
+
+gamma is computed as the histogram convolved with the sampled kernel mu_U - mu_L: the same sum,
+without a loop over positions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Value of ``RobustAngle.fallback`` when the thresholds could not be used.
+MEDIAN_FALLBACK = "median"
+
+
+@dataclass(frozen=True)
+class RobustAngle:
+    """Result of the two-threshold filter.
+
+    Attributes:
+        value: the mean of the inliers (or the median on fallback); NaN if there was no data.
+        lower, upper: the two thresholds (NaN on fallback).
+        inliers: boolean mask over the input values (all False on fallback).
+        fallback: None, or ``"median"`` when the median was used instead.
+    """
+
+    value: float
+    lower: float
+    upper: float
+    inliers: np.ndarray
+    fallback: str | None
+
+
+class Type2FuzzyThreshold:
+    """Two ultrafuzziness thresholds around the main group of values; mean of the inliers.
+
+    Args:
+        alpha: exponent of the footprint of uncertainty, in (1, 2]; paper eq. (6), default 2.
+        bandwidth_deg: half-width of the triangular membership function in degrees.
+        resolution_deg: quantisation step of the histogram of values (ALGORITHMS.md: 0.1 deg).
+        min_values: fewer values than this fall back to the median.
+    """
+
+    def __init__(self, alpha: float = 2.0, bandwidth_deg: float = 1.0,
+                 resolution_deg: float = 0.1, min_values: int = 3):
+        if not (1.0 < alpha <= 2.0):
+            raise ValueError(f"alpha must be in (1, 2] (paper eq. 6); got {alpha}")
+        if not (bandwidth_deg > resolution_deg > 0):
+            raise ValueError("need bandwidth_deg > resolution_deg > 0; got "
+                             f"{bandwidth_deg} and {resolution_deg}")
+        if min_values < 1:
+            raise ValueError(f"min_values must be >= 1; got {min_values}")
+        self.alpha = float(alpha)
+        self.bandwidth = float(bandwidth_deg)
+        self.resolution = float(resolution_deg)
+        self.min_values = int(min_values)
+        self._half_taps = int(np.ceil(self.bandwidth / self.resolution))
+        offsets = np.arange(-self._half_taps, self._half_taps + 1) * self.resolution
+        membership = np.clip(1.0 - np.abs(offsets) / self.bandwidth, 0.0, 1.0)
+        self._kernel = membership ** (1.0 / self.alpha) - membership ** self.alpha
+
+    def ultrafuzziness(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions T (degrees) and gamma(T) over the range of ``values`` +- one bandwidth."""
+        bins = np.rint(np.asarray(values, dtype=np.float64) / self.resolution).astype(np.int64)
+        first = bins.min() - self._half_taps
+        histogram = np.bincount(bins - first, minlength=int(bins.max() - first) + 1
+                                + self._half_taps)
+        gamma = np.convolve(histogram, self._kernel, mode="same") / bins.size
+        positions = (first + np.arange(histogram.size)) * self.resolution
+        return positions, gamma
+
+    def __call__(self, values: np.ndarray) -> RobustAngle:
+        """Filter ``values`` (degrees; non-finite entries are ignored and never inliers)."""
+        values = np.asarray(values, dtype=np.float64)
+        finite = np.isfinite(values)
+        inliers = np.zeros(values.shape, bool)
+        if not finite.any():
+            return RobustAngle(np.nan, np.nan, np.nan, inliers, MEDIAN_FALLBACK)
+        median = float(np.median(values[finite]))
+        if np.count_nonzero(finite) >= self.min_values:
+            positions, gamma = self.ultrafuzziness(values[finite])
+            left = positions <= median
+            right = positions >= median
+            lower = float(positions[left][np.argmax(gamma[left])])
+            upper = float(positions[right][np.argmax(gamma[right])])
+            inliers = finite & (values >= lower) & (values <= upper)
+            if inliers.any():
+                return RobustAngle(float(values[inliers].mean()), lower, upper, inliers, None)
+        return RobustAngle(median, np.nan, np.nan, np.zeros(values.shape, bool),
+                           MEDIAN_FALLBACK)

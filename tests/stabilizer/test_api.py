@@ -1,0 +1,65 @@
+"""Input validation and degenerate inputs through ``stabilizer.estimate``."""
+
+import numpy as np
+import pytest
+
+import stabilizer
+from tests.synthetic import make_depth_scene
+
+REFERENCE = stabilizer.depth_to_disparity(make_depth_scene(0))
+
+
+@pytest.mark.parametrize("bad, words", [
+    (REFERENCE.astype(np.int16), ["dtype", "uint8"]),
+    (REFERENCE.astype(np.int32), ["dtype", "float32"]),
+    (np.stack([REFERENCE] * 3, axis=-1), ["2-D", "shape"]),
+    (REFERENCE.ravel(), ["2-D"]),
+    ([[1, 2], [3, 4]], ["numpy array"]),
+])
+def test_wrong_input_is_a_value_error_saying_what_is_accepted(bad, words):
+    with pytest.raises(ValueError) as error:
+        stabilizer.estimate(REFERENCE, bad)
+    assert all(word in str(error.value) for word in words)
+
+
+def test_mismatched_shapes():
+    with pytest.raises(ValueError, match="same shape"):
+        stabilizer.estimate(REFERENCE, REFERENCE[:-2])
+
+
+def test_unknown_method():
+    with pytest.raises(ValueError, match="unknown method 'nope'.*t2fuzzy"):
+        stabilizer.estimate(REFERENCE, REFERENCE, method="nope")
+
+
+def test_unknown_parameter_is_rejected():
+    with pytest.raises(TypeError):
+        stabilizer.estimate(REFERENCE, REFERENCE, not_a_parameter=1)
+
+
+def test_bad_parameter_value_is_a_value_error():
+    with pytest.raises(ValueError, match="max_shift_px"):
+        stabilizer.estimate(REFERENCE, REFERENCE, max_shift_px=80)
+
+
+@pytest.mark.parametrize("current", [np.full(REFERENCE.shape, 90, np.uint8),
+                                     np.zeros(REFERENCE.shape, np.uint8),
+                                     np.full(REFERENCE.shape, np.nan, np.float32)])
+def test_flat_or_invalid_current_frame_gives_a_status(current):
+    motion = stabilizer.estimate(REFERENCE, current)
+    assert motion.status == "no_structure" and not motion.ok
+    assert motion.diagnostics["frame"] == "current"
+    assert np.isnan(motion.angle_deg)
+
+
+def test_flat_reference_gives_a_status_for_every_frame():
+    tracker = stabilizer.Stabilizer(np.zeros(REFERENCE.shape, np.uint8))
+    motion = tracker.estimate(REFERENCE)
+    assert motion.status == "no_structure" and motion.diagnostics["frame"] == "reference"
+
+
+def test_float_depth_is_accepted_and_equals_its_disparity():
+    depth = make_depth_scene(0)
+    from_depth = stabilizer.estimate(depth, depth)
+    from_uint8 = stabilizer.estimate(REFERENCE, REFERENCE)
+    assert from_depth.as_tuple() == from_uint8.as_tuple()

@@ -1,0 +1,137 @@
+"""Stage 2: IT2-FCM on the weighted histogram, KM type reduction, labels, clean-up."""
+
+import numpy as np
+import pytest
+
+from stabilizer.histogram_seeds import HistogramSeeds, valid_level_histogram
+from stabilizer.inputs import depth_to_disparity
+from stabilizer.it2fcm import (
+    IT2FCM,
+    LabelCleaner,
+    interval_memberships,
+    karnik_mendel,
+    type1_memberships,
+)
+from tests.synthetic import make_depth_scene
+
+
+def _iterative_km(x, lower, upper, right):
+    """Textbook Karnik-Mendel iteration for one cluster (x ascending)."""
+    weights = (lower + upper) / 2.0
+    centre = np.sum(weights * x) / np.sum(weights)
+    switch = None
+    while True:
+        k = np.searchsorted(x, centre, side="right")  # x[:k] <= centre < x[k:]
+        if k == switch:
+            return centre
+        switch = k
+        first, rest = (lower, upper) if right else (upper, lower)
+        weights = np.concatenate((first[:k], rest[k:]))
+        centre = np.sum(weights * x) / np.sum(weights)
+
+
+def _per_pixel_it2fcm(pixels, seeds, m1, m2, tol, max_iter):
+    """IT2-FCM on every valid pixel, the reference form of the histogram implementation."""
+    x = np.sort(pixels.astype(np.float64))
+    m = (m1 + m2) / 2.0
+    centres = np.sort(np.asarray(seeds, np.float64))
+    for _ in range(max_iter):
+        upper, lower = interval_memberships(x, centres, m1, m2)
+        new = np.array([(_iterative_km(x, lower[j] ** m, upper[j] ** m, False)
+                         + _iterative_km(x, lower[j] ** m, upper[j] ** m, True)) / 2
+                        for j in range(centres.size)])
+        done = np.max(np.abs(new - centres)) < tol
+        centres = new
+        if done:
+            break
+    return centres
+
+
+def test_vectorised_km_equals_iterative_km():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        x = np.sort(rng.uniform(0, 255, 40))
+        lower = rng.uniform(0.0, 0.5, (3, 40))
+        upper = lower + rng.uniform(0.0, 0.5, (3, 40))
+        v_left, v_right = karnik_mendel(x, lower, upper)
+        for j in range(3):
+            assert v_left[j] == pytest.approx(_iterative_km(x, lower[j], upper[j], False),
+                                              abs=1e-10)
+            assert v_right[j] == pytest.approx(_iterative_km(x, lower[j], upper[j], True),
+                                               abs=1e-10)
+        assert np.all(v_left <= v_right + 1e-12)
+
+
+def test_km_of_equal_bounds_is_the_weighted_mean():
+    x = np.array([1.0, 2.0, 4.0, 8.0])
+    w = np.array([[1.0, 2.0, 3.0, 4.0]])
+    v_left, v_right = karnik_mendel(x, w, w)
+    expected = np.sum(w[0] * x) / w.sum()
+    assert v_left[0] == pytest.approx(expected) and v_right[0] == pytest.approx(expected)
+
+
+def test_memberships_sum_to_one_and_a_point_on_a_centre_belongs_to_it():
+    x = np.array([10.0, 20.0, 35.0, 50.0])
+    u = type1_memberships(x, np.array([20.0, 50.0]), m=2.0)
+    np.testing.assert_allclose(u.sum(axis=0), 1.0)
+    np.testing.assert_allclose(u[:, 1], [1.0, 0.0])
+    np.testing.assert_allclose(u[:, 3], [0.0, 1.0])
+    upper, lower = interval_memberships(x, np.array([20.0, 50.0]), 2.0, 5.0)
+    assert np.all(upper >= lower)
+
+
+def test_histogram_form_equals_per_pixel_form_on_a_real_image():
+    image = depth_to_disparity(make_depth_scene(1, floor=True))
+    seeds = HistogramSeeds()(image)
+    fcm = IT2FCM(m1=2.0, m2=5.0, tol=1e-6, max_iter=30)
+    fast = fcm.fit(seeds.level_counts, seeds.seeds)
+    slow = _per_pixel_it2fcm(image[image > 0], seeds.seeds, 2.0, 5.0, 1e-6, 30)
+    np.testing.assert_allclose(fast.centres, slow, rtol=0, atol=1e-8)
+
+
+def test_known_clusters_are_found_and_labelled():
+    rng = np.random.default_rng(0)
+    levels = np.concatenate([rng.normal(40, 3, 3000), rng.normal(120, 4, 2000),
+                             rng.normal(210, 3, 1000)])
+    image = np.clip(np.rint(levels), 1, 255).astype(np.uint8).reshape(60, 100)
+    fcm = IT2FCM()
+    result = fcm.fit(valid_level_histogram(image), np.array([30.0, 100.0, 200.0]))
+    assert result.converged
+    np.testing.assert_allclose(result.centres, [40, 120, 210], atol=1.5)
+    assert np.all(result.intervals[:, 0] <= result.intervals[:, 1])
+    assert result.level_labels[0] == 0
+    assert list(result.level_labels[[40, 120, 210]]) == [1, 2, 3]
+
+
+def test_iteration_cap_is_reported():
+    image = depth_to_disparity(make_depth_scene(0))
+    seeds = HistogramSeeds()(image)
+    result = IT2FCM(max_iter=1).fit(seeds.level_counts, seeds.seeds)
+    assert result.iterations == 1 and not result.converged
+
+
+def test_cleaner_removes_specks_fills_holes_and_keeps_invalid_pixels_out():
+    labels = np.ones((40, 40), np.int32)
+    labels[10:30, 10:30] = 2
+    labels[20, 20] = 1        # hole in object 2
+    labels[5, 5] = 2          # speck in object 1
+    labels[:, 35:] = 0        # invalid stripe
+    cleaned = LabelCleaner(morph_size=3, min_area=0)(labels, 2)
+    assert cleaned[20, 20] == 2 and cleaned[5, 5] == 1
+    assert np.all(cleaned[:, 35:] == 0)
+    dropped = LabelCleaner(morph_size=3, min_area=500)(labels, 2)
+    assert np.all(dropped[labels == 2] != 2)
+
+
+@pytest.mark.parametrize("kwargs", [{"m1": 1.0}, {"m1": 3.0, "m2": 2.0}, {"tol": 0},
+                                    {"max_iter": 0}])
+def test_bad_fcm_parameters_raise(kwargs):
+    with pytest.raises(ValueError):
+        IT2FCM(**kwargs)
+
+
+def test_bad_cleaner_parameters_raise():
+    with pytest.raises(ValueError):
+        LabelCleaner(morph_size=4)
+    with pytest.raises(ValueError):
+        LabelCleaner(min_area=-1)
