@@ -10,14 +10,18 @@ import numpy as np
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
 
-#: Method name -> "module:class". Each class is built as ``cls(reference, **params)`` (the
-#: reference analysed once) and has ``estimate(current) -> Motion``.
+#: Method name -> ("module:class", default parameters). Each class is built as
+#: ``cls(reference, **params)`` (the reference analysed once) and has
+#: ``estimate(current) -> Motion``. "t2fuzzy_paper" is the paper's stages alone, without the
+#: documented refinements of "t2fuzzy", so that what the refinements add stays measurable.
 _METHODS = {
-    "t2fuzzy": "stabilizer.t2fuzzy:T2FuzzyEstimator",
-    "sift": "stabilizer.peers.sift:SiftEstimator",
-    "icp": "stabilizer.peers.icp:IcpEstimator",
-    "ecc": "stabilizer.peers.ecc:EccEstimator",
-    "fourier_mellin": "stabilizer.peers.fourier_mellin:FourierMellinEstimator",
+    "t2fuzzy": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {}),
+    "t2fuzzy_paper": ("stabilizer.t2fuzzy:T2FuzzyEstimator",
+                      {"refine_rotation": False, "refine_iterations": 0}),
+    "sift": ("stabilizer.peers.sift:SiftEstimator", {}),
+    "icp": ("stabilizer.peers.icp:IcpEstimator", {}),
+    "ecc": ("stabilizer.peers.ecc:EccEstimator", {}),
+    "fourier_mellin": ("stabilizer.peers.fourier_mellin:FourierMellinEstimator", {}),
 }
 
 
@@ -26,11 +30,13 @@ def available_methods() -> tuple[str, ...]:
     return tuple(_METHODS)
 
 
-def _estimator_class(method: str):
+def _estimator(method: str, reference: np.ndarray, params: dict[str, Any]):
     if method not in _METHODS:
         raise ValueError(f"unknown method {method!r}; accepted: {', '.join(_METHODS)}")
-    module_name, class_name = _METHODS[method].split(":")
-    return getattr(importlib.import_module(module_name), class_name)
+    target, defaults = _METHODS[method]
+    module_name, class_name = target.split(":")
+    estimator_class = getattr(importlib.import_module(module_name), class_name)
+    return estimator_class(reference, **{**defaults, **params})
 
 
 class Stabilizer:
@@ -45,7 +51,7 @@ class Stabilizer:
     def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", **params: Any):
         self.method = method
         self.reference = as_disparity(reference, "reference")
-        self._estimator = _estimator_class(method)(self.reference, **params)
+        self._estimator = _estimator(method, self.reference, params)
 
     def estimate(self, current: np.ndarray) -> Motion:
         current = as_disparity(current, "current")
