@@ -100,6 +100,41 @@ class _ReferenceTracker:
         return self.frame
 
 
+def build_robot(scenario):
+    """The scenario's scene with the humanoid standing at its start, ready to walk."""
+    from sim.scenes import build_scene
+    from sim.walking import RobotSimulation
+    from sim.world import assemble, compile_world
+
+    scene = build_scene(scenario.scene, scenario.scene_seed)
+    model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
+    return RobotSimulation(model, gait=scenario.gait.params(), seed=scenario.seed)
+
+
+def open_sensor(scenario, robot):
+    """The scenario's SR4000 on the robot's head (a context manager: it holds a renderer)."""
+    from sim.sr4000 import SR4000
+
+    return SR4000(robot.model, robot.camera_name, scenario.sensor.tof_params(),
+                  fps=scenario.sensor.fps, seed=scenario.seed)
+
+
+def walk_frames(scenario, robot, sensor, n_frames: int):
+    """Walk the robot under the scenario's commands; yield each SR4000 frame when finished.
+
+    Physics advances control period by control period; the sensor renders at its exposure
+    times (the control step nearest each), so frames come at the sensor's frame rate.
+    """
+    for index in range(n_frames):
+        for exposure_time in sensor.exposure_times(index):
+            while robot.time + 0.5 * robot.control_period_s < exposure_time:
+                command = scenario.command_at(robot.time)
+                robot.command(command.speed, command.yaw_rate)
+                robot.step()
+            sensor.expose(robot.data)
+        yield sensor.read_frame(index)
+
+
 def _estimate(stabilizer: Stabilizer, current) -> tuple[Motion, float]:
     start = time.perf_counter()
     try:
@@ -121,11 +156,7 @@ def run(config: RunConfig) -> dict:
     from sim.recording import RunRecorder
     from sim.report import write_run_outputs
     from sim.scenario import load_scenario
-    from sim.scenes import build_scene
     from sim.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
-    from sim.sr4000 import SR4000
-    from sim.walking import RobotSimulation
-    from sim.world import assemble, compile_world
 
     overrides = dict(config.overrides)
     if config.seed is not None:
@@ -137,9 +168,7 @@ def run(config: RunConfig) -> dict:
     out_dir = Path(config.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    scene = build_scene(scenario.scene, scenario.scene_seed)
-    model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
-    robot = RobotSimulation(model, gait=scenario.gait.params(), seed=scenario.seed)
+    robot = build_robot(scenario)
     recording_path = out_dir / RECORDING_RRD
     recording = config.record and scenario.recording.enabled
     scenario_dict = scenario.to_dict()
@@ -175,17 +204,9 @@ def run(config: RunConfig) -> dict:
     progress = _progress_bar(n_frames_planned, scenario.name, config.progress)
     previous_frame = None
     try:
-        with SR4000(model, robot.camera_name, scenario.sensor.tof_params(),
-                    fps=scenario.sensor.fps, seed=scenario.seed) as sensor:
-            for index in range(n_frames_planned):
-                for exposure_time in sensor.exposure_times(index):
-                    while robot.time + 0.5 * robot.control_period_s < exposure_time:
-                        command = scenario.command_at(robot.time)
-                        robot.command(command.speed, command.yaw_rate)
-                        robot.step()
-                    sensor.expose(robot.data)
-                frame = sensor.read_frame(index)
-                cycle = robot.gait_cycle
+        with open_sensor(scenario, robot) as sensor:
+            for frame in walk_frames(scenario, robot, sensor, n_frames_planned):
+                index, cycle = frame.index, robot.gait_cycle
                 reference = tracker.reference_for(frame, cycle, previous_frame)
                 truth = ground_truth(reference, frame,
                                      reference_depth_m=reference.true_depth_m,
