@@ -52,6 +52,7 @@ def as_disparity(image: np.ndarray, name: str = "image") -> np.ndarray:
     """
     if not isinstance(image, np.ndarray):
         raise ValueError(f"{name} must be a numpy array; got {type(image).__name__}")
+    image = np.asarray(image)  # array subclasses (np.matrix, masked arrays) as plain arrays
     if image.ndim != 2:
         raise ValueError(
             f"{name} must be a 2-D H x W array (uint8 disparity or float depth in metres); "

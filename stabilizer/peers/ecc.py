@@ -11,11 +11,18 @@ the pixel origin (0, 0); :func:`stabilizer.peers.common.motion_from_matrix` re-e
 the image centre. A level-l pyramid image has coordinates x / 2**l, so W's translation scales by
 2**-l between levels and its rotation does not.
 
-Starts (ECC's basin is only a few pixels at the coarsest level): the translation from windowed
-phase correlation, then zero translation, each with the angles ``start_angles_deg`` (default 0,
--10, +10 degrees), in that order (:func:`stabilizer.peers.common.coarse_starts`). The search
-stops at the first result with a final correlation of at least ``min_correlation``; otherwise
-the best correlation wins.
+Before anything else both frames are median filtered
+(:func:`stabilizer.peers.common.denoised`), which removes ToF speckle and lowers the noise that
+caps the correlation.
+
+Starts (ECC's basin is only a few pixels at the coarsest level): from
+:class:`stabilizer.peers.common.StartSearch`, angles ``start_angles_deg`` each with the shift
+found by phase correlation after turning the frame back, best phase-correlation response first;
+at most ``max_starts`` are run. The search stops at the first result with a final correlation
+of at least ``min_correlation``; otherwise the best correlation wins. (On simulated SR4000
+walks, correct alignments reached 0.957-1.0 and wrong ones at most 0.54; the earlier start
+rule, one phase-correlation shift for every angle, left 15 % of the frames of a walk with
+turns of up to 16 degrees and shifts of 40 px unregistered.)
 
 Statuses (``Motion.status``) besides ``"ok"``:
     ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
@@ -36,8 +43,14 @@ import cv2
 import numpy as np
 
 from stabilizer.motion import Motion, motion_matrix
-from stabilizer.peers.common import (coarse_starts, frame_problem, motion_from_matrix,
-                                     zero_mean_float)
+from stabilizer.peers.common import (
+    START_ANGLES_DEG,
+    StartSearch,
+    check_median_ksize,
+    denoised,
+    frame_problem,
+    motion_from_matrix,
+)
 
 
 class EccEstimator:
@@ -45,20 +58,23 @@ class EccEstimator:
 
     Args:
         reference: uint8 disparity-like image (0 = invalid).
+        median_ksize: median filter applied to both frames (0 or 1 = none). Default 5.
         levels: pyramid levels (1 = full resolution only). Default 3.
         iterations: most ECC iterations per level. Default 50.
         epsilon: ECC stops when the correlation gains less than this. Default 1e-4.
         gauss_filter_size: ECC's Gaussian pre-smoothing kernel (odd). Default 5.
         min_correlation: the search over starts ends at the first result with at least this
             final correlation; a best result below it is a failure. Default 0.9.
-        start_angles_deg: start angles, each with the two start translations. Default
-            (0, -10, 10).
+        start_angles_deg: the start angle grid. Default ``START_ANGLES_DEG`` of
+            :mod:`stabilizer.peers.common` (-15 to 15 in steps of 5).
+        max_starts: most starts run, best phase-correlation response first. Default 3.
     """
 
-    def __init__(self, reference: np.ndarray, levels: int = 3, iterations: int = 50,
-                 epsilon: float = 1e-4, gauss_filter_size: int = 5,
+    def __init__(self, reference: np.ndarray, median_ksize: int = 5, levels: int = 3,
+                 iterations: int = 50, epsilon: float = 1e-4, gauss_filter_size: int = 5,
                  min_correlation: float = 0.9,
-                 start_angles_deg: tuple[float, ...] = (0.0, -10.0, 10.0)):
+                 start_angles_deg: tuple[float, ...] = START_ANGLES_DEG,
+                 max_starts: int = 3):
         if levels < 1 or iterations < 1:
             raise ValueError(f"need levels >= 1 and iterations >= 1; got {levels}, {iterations}")
         if gauss_filter_size < 1 or gauss_filter_size % 2 == 0:
@@ -68,13 +84,15 @@ class EccEstimator:
         self.criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, iterations, epsilon)
         self.gauss_filter_size = gauss_filter_size
         self.min_correlation = min_correlation
-        if not start_angles_deg:
-            raise ValueError("start_angles_deg must hold at least one angle")
-        self.start_angles_deg = tuple(start_angles_deg)
+        if max_starts < 1:
+            raise ValueError(f"max_starts must be >= 1; got {max_starts}")
+        check_median_ksize(median_ksize)
+        self.median_ksize = median_ksize
+        self.max_starts = max_starts
         self._shape = reference.shape
-        self._window = cv2.createHanningWindow(reference.shape[::-1], cv2.CV_32F)
         self._reference_problem = frame_problem(reference, "reference")
-        self._reference_float = zero_mean_float(reference)
+        reference = denoised(reference, median_ksize)
+        self._starts = StartSearch(reference, start_angles_deg)
         self._reference_pyramid = self._pyramid(reference)
 
     def _pyramid(self, image: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -96,11 +114,11 @@ class EccEstimator:
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
+        current = denoised(current, self.median_ksize)
         pyramid = self._pyramid(current)
-        starts = coarse_starts(self._reference_float, zero_mean_float(current), self._window,
-                               self.start_angles_deg)
         best = None
-        for count, start in enumerate(starts, start=1):
+        for count, (start, _) in enumerate(self._starts.ranked(current)[:self.max_starts],
+                                           start=1):
             result = self._align(pyramid, start)
             if result is not None and (best is None or result[1] > best[1]):
                 best = (*result, start.angle_deg)

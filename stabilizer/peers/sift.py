@@ -1,7 +1,8 @@
 """SIFT peer (Kang et al. 2009, Table I "SIFT"; Lowe 2004): keypoints, ratio test, rigid RANSAC.
 
-SIFT keypoints and descriptors are found on the valid interior of each disparity image (never
-on the step to 0 = no measurement), matched to the reference's by Lowe's ratio test, and a
+SIFT keypoints and descriptors are found on the valid interior of each median-filtered
+(:func:`stabilizer.peers.common.denoised`) disparity image (never on the step to 0 = no
+measurement), matched to the reference's by Lowe's ratio test, and a
 rotation + translation (no scale) is fitted robustly: a rigid two-point RANSAC (every pair of
 matches proposes a motion; see :func:`_rigid_ransac_inliers` for why not OpenCV's similarity
 RANSAC) picks the consensus set, then the closed-form rigid fit about the image centre is
@@ -26,7 +27,14 @@ import cv2
 import numpy as np
 
 from stabilizer.motion import Motion, image_centre
-from stabilizer.peers.common import fit_rigid, frame_problem, transform_points, valid_interior
+from stabilizer.peers.common import (
+    check_median_ksize,
+    denoised,
+    fit_rigid,
+    frame_problem,
+    transform_points,
+    valid_interior,
+)
 
 
 class SiftEstimator:
@@ -42,16 +50,22 @@ class SiftEstimator:
             the third confirms it).
         border_margin_px: keypoints are detected only this far (px) from invalid pixels.
             Default 3.
-        contrast_threshold: SIFT's contrast threshold. Default 0.01, below OpenCV's 0.04,
+        median_ksize: median filter applied to both frames (0 or 1 = none). Default 5: on two
+            simulated SR4000 walks it halved the mean angle error (1.0 -> 0.5 deg on the
+            walk with a cluttered scene) and removed most gross errors.
+        contrast_threshold: SIFT's contrast threshold. Default 0.003, far below OpenCV's 0.04,
             because disparity images have few, low-contrast corners (walls differ by a few
-            gray levels); at 0.04 about half of the synthetic test scenes had too few matches.
+            gray levels): on a simulated SR4000 corridor walk, 0.01 left 19 % of the frames
+            with too few matches or inliers, 0.005 7 %, 0.003 1.7 % (gross errors 3, 3 and 2
+            frames of 120); at 0.04 about half of the synthetic test scenes had too few
+            matches.
         max_features: keep the best N keypoints per frame, 0 = all (OpenCV default).
         max_hypotheses: most two-match rigid hypotheses RANSAC scores. Default 2000.
     """
 
-    def __init__(self, reference: np.ndarray, ratio: float = 0.75,
+    def __init__(self, reference: np.ndarray, median_ksize: int = 5, ratio: float = 0.75,
                  ransac_threshold_px: float = 3.0, min_inliers: int = 3,
-                 border_margin_px: int = 3, contrast_threshold: float = 0.01,
+                 border_margin_px: int = 3, contrast_threshold: float = 0.003,
                  max_features: int = 0, max_hypotheses: int = 2000):
         if not 0.0 < ratio < 1.0:
             raise ValueError(f"ratio must be in (0, 1); got {ratio}")
@@ -60,6 +74,8 @@ class SiftEstimator:
         if min_inliers < 2:
             raise ValueError(f"min_inliers must be >= 2 (a rigid motion needs 2 points); "
                              f"got {min_inliers}")
+        check_median_ksize(median_ksize)
+        self.median_ksize = median_ksize
         self.ratio = ratio
         self.ransac_threshold_px = ransac_threshold_px
         self.min_inliers = min_inliers
@@ -69,7 +85,8 @@ class SiftEstimator:
         self._sift = cv2.SIFT_create(nfeatures=max_features, contrastThreshold=contrast_threshold)
         self._matcher = cv2.BFMatcher(cv2.NORM_L2)
         self._reference_problem = frame_problem(reference, "reference")
-        self._reference_points, self._reference_descriptors = self._features(reference)
+        self._reference_points, self._reference_descriptors = self._features(
+            denoised(reference, median_ksize))
 
     def _features(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         mask = valid_interior(image, self.border_margin_px)
@@ -81,7 +98,7 @@ class SiftEstimator:
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
-        points, descriptors = self._features(current)
+        points, descriptors = self._features(denoised(current, self.median_ksize))
         diagnostics = {"n_reference_keypoints": len(self._reference_points),
                        "n_keypoints": len(points)}
         if min(len(self._reference_points), len(points)) < 2:

@@ -3,8 +3,11 @@
 Each current frame is a synthetic disparity scene warped by a known Motion (tests/synthetic.py,
 ``apply_motion``: nearest-neighbour, uncovered pixels invalid), within +-15 deg and +-40 px (the
 paper's walking peaks: x +-40 px, rotation +-12 deg). Tolerances are per method, from what each
-did on 300 such random cases (ok / accurate = within 1 deg and 2 px: sift 273 / 247,
-icp 297 / 293, ecc 296 / 296, fourier_mellin 300 / 296; medians well inside the bounds below):
+did on 300 such random cases (ok / accurate = within 1 deg and 2 px: sift 280 / 249,
+icp 300 / 298, ecc 300 / 300, fourier_mellin 299 / 284; medians well inside the bounds below;
+this test's protocol with 300 cases). With sensor noise
+(``test_recovers_random_motions_in_noisy_frames``), on 100 cases: sift 100 / 81, icp 100 / 100,
+ecc 100 / 100, fourier_mellin 100 / 94; the noisy bounds are in ``NOISY_TOLERANCES``.
 
 ============== ========= =============== ==================== ====================
 method         ok of 12  accurate of 12  median |angle err|   median |shift err|
@@ -28,7 +31,12 @@ import pytest
 
 from stabilizer import Motion, apply_motion, depth_to_disparity, estimate, motion_matrix
 from stabilizer.motion import wrap_angle_deg
-from stabilizer.peers.common import fit_rigid, motion_from_matrix
+from stabilizer.peers.common import (
+    START_ANGLES_DEG,
+    StartSearch,
+    fit_rigid,
+    motion_from_matrix,
+)
 from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator
@@ -46,6 +54,14 @@ TOLERANCES = {
     "ecc": (11, 11, 0.15, 0.15),
     "fourier_mellin": (11, 11, 0.4, 0.4),
 }
+# The same for frames with sensor noise (see test_recovers_random_motions_in_noisy_frames).
+NOISY_TOLERANCES = {
+    "sift": (11, 8, 1.0, 1.0),
+    "icp": (11, 11, 0.3, 0.3),
+    "ecc": (11, 11, 0.15, 0.15),
+    "fourier_mellin": (11, 10, 0.4, 0.4),
+}
+NOISE_SIGMA, DROPOUT_RATE = 3.0, 0.002
 ACCURATE_DEG, ACCURATE_PX = 1.0, 2.0
 SIGN_TOLERANCE = (1.5, 1.5)  # deg, px
 N_CASES = 12
@@ -62,15 +78,28 @@ def _errors(estimated: Motion, truth: Motion) -> tuple[float, float]:
     return angle_error, max(abs(estimated.dx - truth.dx), abs(estimated.dy - truth.dy))
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_recovers_random_motions_within_tolerance(method):
-    least_ok, least_accurate, median_deg, median_px = TOLERANCES[method]
+def _tof_noise(disparity: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A disparity frame as a ToF camera delivers it: Gaussian noise of NOISE_SIGMA gray levels
+    on valid pixels and a DROPOUT_RATE of isolated dropouts to 0 (no measurement)."""
+    noisy = np.rint(disparity + rng.normal(0.0, NOISE_SIGMA, disparity.shape))
+    noisy = np.clip(noisy, 1, 255).astype(np.uint8)
+    noisy[(disparity == 0) | (rng.random(disparity.shape) < DROPOUT_RATE)] = 0
+    return noisy
+
+
+def _assert_recovers_random_motions(method: str, tolerances: tuple,
+                                    noise_rng: np.random.Generator | None = None) -> None:
+    """N_CASES random scenes and motions; with ``noise_rng``, each frame gets its own noise."""
+    least_ok, least_accurate, median_deg, median_px = tolerances
     rng = np.random.default_rng(2024)
     errors, statuses = [], []
     for case in range(N_CASES):
         reference = _disparity(500 + case)
         truth = random_motion(rng, max_angle_deg=15.0, max_shift_px=40.0)
-        result = ESTIMATORS[method](reference).estimate(apply_motion(reference, truth))
+        current = apply_motion(reference, truth)
+        if noise_rng is not None:
+            reference, current = _tof_noise(reference, noise_rng), _tof_noise(current, noise_rng)
+        result = ESTIMATORS[method](reference).estimate(current)
         statuses.append(result.status)
         if result.ok:
             errors.append(_errors(result, truth))
@@ -80,6 +109,23 @@ def test_recovers_random_motions_within_tolerance(method):
     assert accurate.sum() >= least_accurate, errors
     assert np.median(errors[:, 0]) <= median_deg
     assert np.median(errors[:, 1]) <= median_px
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_recovers_random_motions_within_tolerance(method):
+    _assert_recovers_random_motions(method, TOLERANCES[method])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_recovers_random_motions_in_noisy_frames(method):
+    """The same cases with sensor noise on both frames, each frame its own noise.
+
+    Noise (sigma 3 gray levels, 0.2 % dropouts) is what simulated SR4000 frames show: robust
+    noise sd 0.8-1.9 gray levels (about 5 on far walls), 0.11-0.15 % isolated dropouts. It
+    turns each noisy wall pixel into a Canny edge, a keypoint or spectral energy unless the
+    estimator copes (before the peers denoised, ICP was accurate on 20 of 100 such cases).
+    """
+    _assert_recovers_random_motions(method, NOISY_TOLERANCES[method], np.random.default_rng(7))
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -151,9 +197,11 @@ def test_diagnostics_are_reported(method):
 
 @pytest.mark.parametrize("method, params", [
     ("sift", {"ratio": 1.5}), ("sift", {"min_inliers": 1}),
-    ("icp", {"overlap": 0.0}), ("icp", {"start_angles_deg": ()}),
-    ("ecc", {"levels": 0}), ("ecc", {"gauss_filter_size": 4}),
-    ("fourier_mellin", {"angle_bins": 2}),
+    ("sift", {"median_ksize": 4}),
+    ("icp", {"overlap": 0.0}), ("icp", {"start_angles_deg": ()}), ("icp", {"gate_factor": 0.0}),
+    ("icp", {"median_ksize": -1}),
+    ("ecc", {"levels": 0}), ("ecc", {"gauss_filter_size": 4}), ("ecc", {"max_starts": 0}),
+    ("fourier_mellin", {"angle_bins": 2}), ("fourier_mellin", {"median_ksize": 6}),
 ])
 def test_bad_parameters_are_value_errors(method, params):
     with pytest.raises(ValueError):
@@ -175,3 +223,16 @@ def test_matrix_about_the_origin_converts_to_the_centre_convention():
     motion = motion_from_matrix(about_origin, SR4000_SHAPE)
     np.testing.assert_allclose(motion_matrix(motion, SR4000_SHAPE), about_origin, atol=1e-9)
     assert motion.angle_deg == pytest.approx(6.0)
+
+
+@pytest.mark.parametrize("truth", [Motion(11.0, -25.0, 18.0), Motion(-7.0, 30.0, -12.0)],
+                         ids=["ccw_11deg", "cw_7deg"])
+def test_start_search_ranks_a_start_in_the_local_methods_basin_first(truth):
+    """The best-ranked start is within one grid step (5 deg) of the true angle, with its shift
+    within a few pixels (the basin of ICP and ECC), although the motion is far from zero."""
+    reference = _disparity(11)
+    ranked = StartSearch(reference).ranked(apply_motion(reference, truth))
+    (best, _), responses = ranked[0], [response for _, response in ranked]
+    assert responses == sorted(responses, reverse=True)
+    assert abs(best.angle_deg - truth.angle_deg) <= START_ANGLES_DEG[1] - START_ANGLES_DEG[0]
+    assert math.hypot(best.dx - truth.dx, best.dy - truth.dy) <= 4.0, best
