@@ -17,7 +17,7 @@ from stabilizer.motion import Motion
 _METHODS = {
     "t2fuzzy": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {}),
     "t2fuzzy_paper": ("stabilizer.t2fuzzy:T2FuzzyEstimator",
-                      {"refine_rotation": False, "refine_iterations": 0}),
+                      {"refine_rotation": False, "refine_iterations": 0, "overlap_passes": 0}),
     "sift": ("stabilizer.peers.sift:SiftEstimator", {}),
     "icp": ("stabilizer.peers.icp:IcpEstimator", {}),
     "ecc": ("stabilizer.peers.ecc:EccEstimator", {}),

@@ -48,21 +48,95 @@ def test_random_motions_of_synthetic_scenes_are_recovered():
     assert within >= 0.9
 
 
-def test_paper_pipeline_without_refinement_runs_and_is_reported():
-    """The paper's stages alone (no FNCC rotation refinement): coarser, see the report."""
-    errors, _ = _recovery(refine_rotation=False, refine_iterations=0)
+@pytest.mark.parametrize("params", [{"refine_rotation": False, "refine_iterations": 0},
+                                    {"refine_rotation": False, "overlap_passes": 0}])
+def test_paper_pipeline_without_refinement_runs_and_is_reported(params):
+    """The paper's stages (no FNCC rotation refinement; with and without the overlap pass):
+    coarser, see the report."""
+    errors, _ = _recovery(**params)
     assert np.mean(np.isfinite(errors[:, 0])) >= 0.95
     assert np.nanmedian(errors[:, 0]) < 3.0
 
 
-@pytest.mark.parametrize("params", [{}, {"refine_rotation": False, "refine_iterations": 0}])
-@pytest.mark.parametrize("truth", [Motion(6.0, 10.0, -7.0), Motion(-9.5, -20.3, 4.6),
-                                   Motion(0.0, 0.0, 0.0)])
+def test_comparing_a_common_disc_helps_the_paper_stages():
+    """Objects cut by the image border in one frame only: the overlap pass compares alike."""
+    with_disc, _ = _recovery(refine_rotation=False)
+    as_written, _ = _recovery(refine_rotation=False, overlap_passes=0)
+    assert np.nanmedian(with_disc[:, 0]) < np.nanmedian(as_written[:, 0])
+
+
+@pytest.mark.parametrize("motion", [Motion(6.0, 10.0, -7.0), Motion(-12.0, -30.0, 20.0)])
+def test_common_disc_masks_show_the_same_part_of_the_scene(motion):
+    estimator = T2FuzzyEstimator(_simple_scene())
+    in_reference, in_current = estimator._common_disc(motion)
+    moved = apply_motion(in_reference.view(np.uint8), motion) > 0
+    overlap = np.count_nonzero(moved & in_current) / np.count_nonzero(moved | in_current)
+    assert overlap > 0.97
+    height, width = in_reference.shape
+    for mask in (in_reference, in_current):  # whole discs, inside the image
+        assert not (mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+    assert np.count_nonzero(in_reference) > 0.3 * height * width
+
+
+def _corridor():
+    """Walls, floor and ceiling in one band of gray levels (one object), their far end out of
+    range (invalid) and a few isolated phase-wrapped pixels (a second cluster cleaned away)."""
+    rows, columns = np.mgrid[:144, :176]
+    to_border = np.minimum.reduce([columns, 175 - columns, rows, 143 - rows])
+    image = np.clip(60 - to_border * 0.25, 41, 60).astype(np.uint8)
+    image[:70, 60:116] = 0
+    image[75:140:13, 30:150:17] = 200
+    return image
+
+
+@pytest.mark.parametrize("truth", [Motion(4.0, 6.0, -3.0), Motion(-8.0, -15.0, 5.0)])
+def test_one_object_beside_a_far_region_gives_an_estimate(truth):
+    reference = _corridor()
+    current = apply_motion(reference, truth)
+    refined = stabilizer.estimate(reference, current)
+    assert refined.diagnostics["n_clusters"] == 2 and refined.ok
+    assert np.unique(refined.diagnostics["labels"]).tolist() == [0, 1]
+    np.testing.assert_allclose(refined.as_tuple(), truth.as_tuple(), atol=0.5)
+    assert stabilizer.estimate(reference, current, refine_rotation=False).ok
+
+
+def _without_outline():
+    image = np.full((144, 176), 60, np.uint8)
+    image[70, 80] = 200  # a second level whose cluster the clean-up removes
+    image[::37, 3:] = 0  # dropouts: long thin lines, no far region
+    return image
+
+
+def test_an_object_without_scene_outline_has_no_structure():
+    """Its only edges are the measurement's: its shape is the frame's, not the scene's."""
+    image = _without_outline()
+    motion = stabilizer.estimate(image, apply_motion(image, Motion(5.0, 3.0, 2.0)))
+    assert motion.status == "no_structure" and motion.diagnostics["frame"] == "reference"
+
+
+SIGN_CASES = [Motion(6.0, 10.0, -7.0), Motion(-9.5, -20.3, 4.6), Motion(0.0, 0.0, 0.0)]
+
+
+@pytest.mark.parametrize("params", [{}, {"refine_rotation": False, "overlap_passes": 0}])
+@pytest.mark.parametrize("truth", SIGN_CASES)
 def test_signs_follow_the_motion_convention(truth, params):
     reference = _simple_scene()
     estimate = stabilizer.estimate(reference, apply_motion(reference, truth), **params)
     assert estimate.ok
     np.testing.assert_allclose(estimate.as_tuple(), truth.as_tuple(), atol=0.5)
+
+
+@pytest.mark.parametrize("truth", SIGN_CASES)
+def test_signs_of_the_paper_stages_on_a_common_disc(truth):
+    """The unrefined stages compare ellipses on a common disc, which cuts the rectangle of this
+    scene: its subband angles spread over about 3 deg, so the angle is good to 1 deg here
+    (6.58 for 6.0), the shift to 0.5 px."""
+    reference = _simple_scene()
+    estimate = stabilizer.estimate(reference, apply_motion(reference, truth),
+                                   refine_rotation=False)
+    assert estimate.ok and estimate.diagnostics["refine_passes"] == 1
+    error = np.abs(np.subtract(estimate.as_tuple(), truth.as_tuple()))
+    assert error[0] <= 1.0 and error[1] <= 0.5 and error[2] <= 0.5
 
 
 def test_compensation_lines_the_frame_up_with_the_reference():
@@ -106,9 +180,9 @@ def test_reference_is_analysed_once():
     calls = []
 
     class Counting(T2FuzzyEstimator):
-        def analyse(self, image, start=None):
+        def analyse(self, image, start=None, **options):
             calls.append(start)
-            return super().analyse(image, start)
+            return super().analyse(image, start, **options)
 
     reference = _scene(2)
     estimator = Counting(reference)
@@ -159,3 +233,9 @@ def test_odd_frames_never_crash(frame):
         motion = stabilizer.estimate(frame, current, max_shift_px=min(44, frame.shape[0] // 4))
         assert motion.ok or motion.status in ("no_structure", NO_ROTATION, NO_TRANSLATION)
         assert motion.ok == np.isfinite(motion.angle_deg)
+
+
+@pytest.mark.parametrize("params", [{"min_hole_size": 0}, {"overlap_passes": -1}])
+def test_bad_structure_parameters_are_value_errors(params):
+    with pytest.raises(ValueError, match=next(iter(params))):
+        T2FuzzyEstimator(_simple_scene(), **params)
