@@ -94,12 +94,21 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from sim.sweep import load_sweep, run_sweep
+    from sim.sweep import default_sweep_dir, load_sweep, run_sweep
 
     spec = load_sweep(args.sweep_file)
-    run_sweep(spec, args.out, backend="ray" if args.ray else "local", workers=args.workers,
-              ray_address=args.ray_address)
-    return 0
+    out_dir = args.out or default_sweep_dir(spec, DEFAULT_RESULTS)
+    try:
+        result = run_sweep(spec, out_dir, backend="ray" if args.ray else "local",
+                           workers=args.workers, ray_address=args.ray_address, progress=True)
+    except ImportError as error:  # --ray without the cluster extra: the message says the fix
+        print(f"egostab sweep: error: {error}", file=sys.stderr)
+        return 2
+    print(result.markdown)
+    for outcome in result.failed:
+        print(f"run failed: {outcome}", file=sys.stderr)
+    print(f"sweep folder: {out_dir}")
+    return 1 if result.failed else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -160,8 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise x methods")
     sweep.add_argument("sweep_file", type=Path)
-    sweep.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "sweeps",
-                       help="sweep folder (resumable: complete runs are skipped)")
+    sweep.add_argument("--out", type=Path, default=None,
+                       help="sweep folder (default: results/sweeps/<name>; resumable: complete "
+                            "runs are skipped)")
     sweep.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
     sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     sweep.add_argument("--ray-address", default=None,

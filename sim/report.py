@@ -64,13 +64,13 @@ class RunFiles:
 
 
 # ----------------------------------------------------------------------------- formatting
-def _number(value: float | None, digits: int = 2) -> str:
+def format_number(value: float | None, digits: int = 2) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "n/a"
     return f"{value:.{digits}f}"
 
 
-def _markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
@@ -83,21 +83,21 @@ def table_one(scores: Mapping[str, MethodScore]) -> str:
         for position, (method, score) in enumerate(scores.items()):
             stats = score.errors[axis]
             label = f"{AXIS_TITLES[axis]} ({AXIS_UNITS[axis]})" if position == 0 else ""
-            rows.append((label, method, _number(stats.mean), _number(stats.variance),
-                         _number(stats.max), str(stats.n)))
-    return _markdown_table(("Displacement", "Method", "Mean of errors", "Variance", "Max",
+            rows.append((label, method, format_number(stats.mean), format_number(stats.variance),
+                         format_number(stats.max), str(stats.n)))
+    return markdown_table(("Displacement", "Method", "Mean of errors", "Variance", "Max",
                             "Frames"), rows)
 
 
 def reliability_table(scores: Mapping[str, MethodScore]) -> str:
     """Failure rate, time per frame and ITF (compensated vs raw) per method."""
-    rows = [(method, f"{_number(100 * score.failure_rate, 1)}% ({score.n_failed}/"
+    rows = [(method, f"{format_number(100 * score.failure_rate, 1)}% ({score.n_failed}/"
                      f"{score.n_frames})",
              ", ".join(f"{status} {count}" for status, count in score.failures.items()) or "-",
-             str(score.n_truth_failed), _number(score.ms_mean), _number(score.ms_median),
-             _number(score.itf_db), _number(score.itf_raw_db))
+             str(score.n_truth_failed), format_number(score.ms_mean), format_number(score.ms_median),
+             format_number(score.itf_db), format_number(score.itf_raw_db))
             for method, score in scores.items()]
-    return _markdown_table(("Method", "Failure rate", "Reasons", "Truth failed",
+    return markdown_table(("Method", "Failure rate", "Reasons", "Truth failed",
                             "ms/frame mean", "ms/frame median", "ITF compensated (dB)",
                             "ITF raw (dB)"), rows)
 
@@ -107,12 +107,12 @@ def cycle_table(summary: RunSummary) -> str:
     rows = []
     for cycle, scores in summary.cycles.items():
         for method, score in scores.items():
-            cells = [f"{_number(score.errors[axis].mean)} / {_number(score.errors[axis].variance)}"
+            cells = [f"{format_number(score.errors[axis].mean)} / {format_number(score.errors[axis].variance)}"
                      for axis in AXES]
             rows.append((str(cycle), method, str(score.n_frames), *cells,
-                         f"{_number(100 * score.failure_rate, 1)}%", _number(score.itf_db),
-                         _number(score.itf_raw_db)))
-    return _markdown_table(("Cycle", "Method", "Frames", "Rotation (deg)", "X (px)", "Y (px)",
+                         f"{format_number(100 * score.failure_rate, 1)}%", format_number(score.itf_db),
+                         format_number(score.itf_raw_db)))
+    return markdown_table(("Cycle", "Method", "Frames", "Rotation (deg)", "X (px)", "Y (px)",
                             "Failures", "ITF (dB)", "ITF raw (dB)"), rows)
 
 
@@ -222,11 +222,11 @@ def metrics_document(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
     })
 
 
-def _safe_name(method: str) -> str:
+def safe_name(method: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", method)
 
 
-def _save_figure(figure: Figure, path: Path) -> Path:
+def save_figure(figure: Figure, path: Path) -> Path:
     FigureCanvasAgg(figure)
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format="png", dpi=PLOT_DPI)
@@ -266,7 +266,7 @@ def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> P
     axes[0].legend(loc="upper right", fontsize="small")
     axes[0].set_title(f"{method}: estimated and true displacement of each frame")
     axes[-1].set_xlabel("simulated time (s)")
-    return _save_figure(figure, path)
+    return save_figure(figure, path)
 
 
 def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
@@ -290,7 +290,7 @@ def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
         ax.set_xlabel(f"|error| {AXIS_TITLES[axis].split()[0].lower()} ({AXIS_UNITS[axis]})")
         ax.set_ylabel("frames")
         ax.grid(True, alpha=0.3)
-    return _save_figure(figure, path)
+    return save_figure(figure, path)
 
 
 def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
@@ -319,7 +319,7 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
     records = list(records)
     plot_paths = ()
     if plots:
-        plot_paths = tuple(run_dir / f"estimates_{_safe_name(method)}.png"
+        plot_paths = tuple(run_dir / f"estimates_{safe_name(method)}.png"
                            for method in summary.methods) + (run_dir / HISTOGRAMS_PNG,)
     files = RunFiles(run_dir, run_dir / FRAMES_CSV, run_dir / METRICS_JSON,
                      run_dir / SUMMARY_MD, plot_paths,
@@ -371,14 +371,14 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
         if not scores:
             rows.append((*head, "-", "0", *("n/a",) * 6))
         for method, score in scores.items():
-            cells = [f"{_number(score['errors'][axis]['mean'])} / "
-                     f"{_number(score['errors'][axis]['variance'])}" for axis in AXES]
+            cells = [f"{format_number(score['errors'][axis]['mean'])} / "
+                     f"{format_number(score['errors'][axis]['variance'])}" for axis in AXES]
             failure = score["failure_rate"]
             rows.append((*head, method, str(score["n_frames"]), *cells,
-                         f"{_number(None if failure is None else 100 * failure, 1)}%",
-                         _number(score["ms_mean"]),
-                         f"{_number(score['itf_db'])} / {_number(score['itf_raw_db'])}"))
-    table = _markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
+                         f"{format_number(None if failure is None else 100 * failure, 1)}%",
+                         format_number(score["ms_mean"]),
+                         f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}"))
+    table = markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
                              "Rotation mean / var (deg)", "X mean / var (px)",
                              "Y mean / var (px)", "Failure rate", "ms/frame",
                              "ITF comp / raw (dB)"), rows)

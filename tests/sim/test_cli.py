@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
+from scenarios import SCENARIOS_DIR
 from sim.cli import DEFAULT_SCENARIO, build_parser, main
 from sim.scenario import list_scenarios
 from stabilizer import depth_to_disparity
@@ -96,3 +97,20 @@ def test_aggregate_makes_one_table_of_several_runs(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.count("ecc") >= 2
     assert table_path.read_text().strip() == out.strip()
+
+
+def test_sweep_runs_the_real_runner_and_resumes(tmp_path, capsys):
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        f'scenarios = ["{(SCENARIOS_DIR / "ci" / "ci_corridor.toml").as_posix()}"]\n'
+        "seeds = [0]\nnoise_levels = [0.5, 2.0]\nmethods = [\"ecc\"]\nmax_frames = 4\n")
+    out_dir = tmp_path / "sweep"
+    assert main(["sweep", str(sweep), "--out", str(out_dir), "--workers", "2"]) == 0
+    runs = sorted((out_dir / "runs").iterdir())
+    assert len(runs) == 2
+    assert all(json.loads((run / "metrics.json").read_text())["status"] == "complete"
+               for run in runs)
+    assert (out_dir / "sweep.md").is_file() and "ecc" in capsys.readouterr().out
+    stamps = [(run / "metrics.json").stat().st_mtime_ns for run in runs]
+    assert main(["sweep", str(sweep), "--out", str(out_dir), "--workers", "2"]) == 0
+    assert [(run / "metrics.json").stat().st_mtime_ns for run in runs] == stamps
