@@ -52,6 +52,46 @@ def valid_interior(image: np.ndarray, margin_px: int) -> np.ndarray:
     return cv2.erode(valid, kernel)
 
 
+def robust_value_range(image: np.ndarray, clip_sigmas: float, noise_factor: float = 5.0,
+                       min_spread: float = 1.0) -> tuple[float, float] | None:
+    """(low, high) = median -+ ``clip_sigmas`` x spread of the valid pixels; None if none valid.
+
+    spread = the larger of the values' robust standard deviation (1.4826 x their median
+    absolute deviation) and ``noise_factor`` x the pixel noise (the robust standard deviation
+    of differences of horizontal neighbours, over sqrt 2), and at least ``min_spread`` gray
+    levels.
+    Clipping to this range keeps the outline of outlying surfaces and drops their weight. Why:
+    an SR4000 reports surfaces beyond its 5 m range phase-wrapped, as very near (+150 gray
+    levels), speckled with dropouts and noisy (+-15 gray levels), so such columns hold most of
+    a frame's energy and their noise most of its high frequencies. The noise floor keeps the
+    range wide enough that noise does not dominate what remains of a scene that is mostly one
+    flat wall (then the values' own spread is the noise alone): on 100 synthetic scenes with
+    noise of 3 gray levels, Fourier-Mellin clipped at 2 spreads without it made 4 estimates.
+    """
+    valid = image > 0
+    values = image[valid].astype(np.float32)
+    if values.size == 0:
+        return None
+    median = float(np.median(values))
+    spread = 1.4826 * float(np.median(np.abs(values - median)))
+    both = valid[:, 1:] & valid[:, :-1]
+    if both.any():
+        steps = (image[:, 1:].astype(np.float32) - image[:, :-1])[both]
+        noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) / math.sqrt(2.0)
+        spread = max(spread, noise_factor * noise)
+    spread = max(spread, min_spread)
+    return median - clip_sigmas * spread, median + clip_sigmas * spread
+
+
+def clipped(image: np.ndarray, value_range: tuple[float, float] | None) -> np.ndarray:
+    """uint8 ``image`` with its valid pixels clipped to ``value_range`` (rounded, kept >= 1 so
+    that they stay valid); invalid pixels stay 0. None = unchanged."""
+    if value_range is None:
+        return image
+    low, high = max(1, round(value_range[0])), min(255, round(value_range[1]))
+    return np.where(image > 0, np.clip(image, low, max(low, high)), 0).astype(np.uint8)
+
+
 def zero_mean_float(image: np.ndarray) -> np.ndarray:
     """float32 copy with the valid pixels' mean subtracted and invalid pixels set to 0.
 
@@ -83,6 +123,35 @@ def check_median_ksize(median_ksize: int) -> None:
     if median_ksize < 0 or (median_ksize > 1 and median_ksize % 2 == 0):
         raise ValueError(f"median_ksize must be 0, 1 (no filter) or an odd integer >= 3; "
                          f"got {median_ksize}")
+
+
+class FramePreparation:
+    """Denoising and robust clipping of frames, the clip range taken once from the reference.
+
+    A frame is median filtered (:func:`denoised`), then its valid values are clipped
+    (:func:`clipped`) to the reference's :func:`robust_value_range`; clipping with the
+    reference's range treats both frames alike.
+
+    Args:
+        reference: uint8 disparity-like image (0 = invalid).
+        median_ksize: median filter size (0 or 1 = none).
+        clip_sigmas: half-width of the clip range in spreads (0 = no clipping).
+        min_spread: the spread is at least this many gray levels.
+    """
+
+    def __init__(self, reference: np.ndarray, median_ksize: int, clip_sigmas: float,
+                 min_spread: float):
+        check_median_ksize(median_ksize)
+        if clip_sigmas < 0 or min_spread <= 0:
+            raise ValueError(f"need clip_sigmas >= 0 and min_spread > 0; "
+                             f"got {clip_sigmas}, {min_spread}")
+        self.median_ksize = median_ksize
+        self.value_range = (robust_value_range(denoised(reference, median_ksize), clip_sigmas,
+                                               min_spread=min_spread)
+                            if clip_sigmas > 0 else None)
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        return clipped(denoised(image, self.median_ksize), self.value_range)
 
 
 class StartSearch:

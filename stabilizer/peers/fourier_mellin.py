@@ -24,6 +24,13 @@ Details:
   over 2 degrees from 27 and 64 to 3 and 9; on clean synthetic scenes, whose sharp edges carry
   their angle in the highest frequencies, accurate estimates (within 1 deg and 2 px) went from
   296 to 284 of 300.
+- Both frames' valid values are clipped to the reference's robust range, median -+
+  ``clip_sigmas`` spreads (:class:`stabilizer.peers.common.FramePreparation`): surfaces beyond
+  the SR4000's range come back phase-wrapped as bright (+150 gray levels), noisy, speckled
+  columns whose noise would fill the spectrum. On a simulated hall walk (200 frames, pillars
+  wrapped) failures went from 71 % to 1 % with it (with 1-degree angle bins); with the true
+  angle given, the translation's phase correlation was wrong (over 4 px) on 113 frames
+  unclipped and 24 clipped at 3 robust standard deviations.
 - No median filter by default (``median_ksize`` 0): on the simulated walks it removed detail the
   spectrum needs (gross errors 0 -> 3-4 %). Frames with dense isolated bright outliers need it:
   scattered 255-valued pixels (0.4 %) broke two thirds of synthetic cases without it.
@@ -57,8 +64,7 @@ import numpy as np
 
 from stabilizer.motion import Motion, compensate
 from stabilizer.peers.common import (
-    check_median_ksize,
-    denoised,
+    FramePreparation,
     frame_problem,
     rotation_matrix,
     zero_mean_float,
@@ -71,7 +77,17 @@ class FourierMellinEstimator:
     Args:
         reference: uint8 disparity-like image (0 = invalid).
         median_ksize: median filter applied to both frames (0 or 1 = none). Default 0.
-        angle_bins: rows of the log-polar image, spanning 360 degrees. Default 720 (0.5 deg).
+        angle_bins: rows of the log-polar image, spanning 360 degrees. Default 360 (1 deg):
+            phaseCorrelate interpolates the peak to a fraction of a bin, and on simulated
+            SR4000 walks (hall 200, lab 120, corridor 120 frames, frames clipped) rotation
+            peaks over 2 degrees off fell from 16 / 4 / 9 frames with 720 bins to 3 / 1 / 1;
+            on 300 clean synthetic cases accurate estimates rose from 284 to 296.
+        clip_sigmas: valid values are clipped to median -+ this many spreads of the
+            reference (0 = no clipping). Default 1.5: hall walk failures 1 %, no gross error
+            (2: 3.5 %, one; 3: 11 %, none; 0: 67.5 %, 3 %); lab and corridor walks 0.8 % and
+            0 % at 1.5 to 3. See :func:`stabilizer.peers.common.robust_value_range`.
+        clip_min_spread: the spread is at least this many gray levels. Default 1 (phase
+            correlation does not care about contrast).
         radius_bins: columns of the log-polar image (log radius). Default 128.
         min_response: translation peaks weaker than this are failures. Default 0.1: on two
             simulated SR4000 walks (240 frames), every estimate with a peak of at least 0.1 was
@@ -82,14 +98,14 @@ class FourierMellinEstimator:
             at least 0.58 (0.9 on all but a low-contrast corridor frame).
     """
 
-    def __init__(self, reference: np.ndarray, median_ksize: int = 0, angle_bins: int = 720,
+    def __init__(self, reference: np.ndarray, median_ksize: int = 0, angle_bins: int = 360,
                  radius_bins: int = 128, min_response: float = 0.1,
-                 min_overlap_correlation: float = 0.8):
+                 min_overlap_correlation: float = 0.8, clip_sigmas: float = 1.5,
+                 clip_min_spread: float = 1.0):
         if angle_bins < 8 or radius_bins < 8:
             raise ValueError(f"need angle_bins >= 8 and radius_bins >= 8; "
                              f"got {angle_bins}, {radius_bins}")
-        check_median_ksize(median_ksize)
-        self.median_ksize = median_ksize
+        self._prepare = FramePreparation(reference, median_ksize, clip_sigmas, clip_min_spread)
         self.angle_bins = angle_bins
         self.radius_bins = radius_bins
         self.min_response = min_response
@@ -102,8 +118,8 @@ class FourierMellinEstimator:
         # is, the log-radius axis is not: a Hann taper along it removes the wrap-around step.
         self._radius_window = np.hanning(radius_bins).astype(np.float32)[None, :]
         self._reference_problem = frame_problem(reference, "reference")
-        self._reference = denoised(reference, median_ksize).copy()
-        self._reference_float = zero_mean_float(reference)
+        self._reference = self._prepare(reference).copy()
+        self._reference_float = zero_mean_float(self._reference)
         self._reference_log_polar = self._log_polar_spectrum(self._reference_float)
 
     def _log_polar_spectrum(self, image_float: np.ndarray) -> np.ndarray:
@@ -123,7 +139,7 @@ class FourierMellinEstimator:
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
-        current = denoised(current, self.median_ksize)
+        current = self._prepare(current)
         current_float = zero_mean_float(current)
         (log_radius_shift, angle_shift), rotation_response = cv2.phaseCorrelate(
             self._reference_log_polar, self._log_polar_spectrum(current_float))

@@ -56,9 +56,8 @@ from scipy.spatial import cKDTree
 from stabilizer.motion import Motion
 from stabilizer.peers.common import (
     START_ANGLES_DEG,
+    FramePreparation,
     StartSearch,
-    check_median_ksize,
-    denoised,
     fit_rigid,
     frame_problem,
     transform_points,
@@ -92,6 +91,14 @@ class IcpEstimator:
         min_fraction: the least inlier fraction accepted as an estimate. Default 0.3.
         gate_factor: the gate shrinks to this times the median match distance. Default 3.
         min_gate_px: the gate never shrinks below this. Default 3.
+        clip_sigmas: after the median filter, valid values are clipped to the reference's
+            median -+ this many spreads (:class:`stabilizer.peers.common.FramePreparation`;
+            0 = no clipping). Default 1.5. Phase-wrapped surfaces beyond the SR4000's range
+            show as bright, noisy columns that otherwise dominate; on a simulated hall walk
+            (200 frames) failures 6.0 -> 2.0 %, gross errors 4.8 -> 4.1 %, mean x / y errors 2.0 / 2.1 -> 0.85 / 1.3 px; the lab and corridor walks were unchanged.
+        clip_min_spread: the clip range's spread is at least this many gray levels, so
+            scenes of one flat wall keep their depth steps (Canny, ECC's gradients need
+            contrast). Default 20.
     """
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, canny_low: float = 20.0,
@@ -101,7 +108,8 @@ class IcpEstimator:
                  start_angles_deg: tuple[float, ...] = START_ANGLES_DEG,
                  max_starts: int = 3, min_points: int = 20, inlier_px: float = 1.5,
                  accept_fraction: float = 0.5, min_fraction: float = 0.3,
-                 gate_factor: float = 3.0, min_gate_px: float = 3.0):
+                 gate_factor: float = 3.0, min_gate_px: float = 3.0, clip_sigmas: float = 1.5,
+                 clip_min_spread: float = 20.0):
         if not 0.0 < overlap <= 1.0:
             raise ValueError(f"overlap must be in (0, 1]; got {overlap}")
         if max_distance_px <= 0 or max_iterations < 1 or min_points < 2:
@@ -113,8 +121,7 @@ class IcpEstimator:
         if max_starts < 1 or gate_factor <= 0 or min_gate_px <= 0:
             raise ValueError(f"need max_starts >= 1, gate_factor > 0 and min_gate_px > 0; "
                              f"got {max_starts}, {gate_factor}, {min_gate_px}")
-        check_median_ksize(median_ksize)
-        self.median_ksize = median_ksize
+        self._prepare = FramePreparation(reference, median_ksize, clip_sigmas, clip_min_spread)
         self.canny_low, self.canny_high = canny_low, canny_high
         self.border_margin_px = border_margin_px
         self.max_points = max_points
@@ -129,7 +136,7 @@ class IcpEstimator:
         self.accept_fraction, self.min_fraction = accept_fraction, min_fraction
         self._shape = reference.shape
         self._reference_problem = frame_problem(reference, "reference")
-        reference = denoised(reference, median_ksize)
+        reference = self._prepare(reference)
         self._starts = StartSearch(reference, start_angles_deg)
         self._reference_points = self._edge_points(reference, limit=None)
         self._tree = cKDTree(self._reference_points)
@@ -148,7 +155,7 @@ class IcpEstimator:
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
-        current = denoised(current, self.median_ksize)
+        current = self._prepare(current)
         points = self._edge_points(current, self.max_points)
         diagnostics = {"n_reference_points": len(self._reference_points),
                        "n_points": len(points)}
