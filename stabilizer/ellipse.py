@@ -25,9 +25,15 @@ import numpy as np
 
 from stabilizer.motion import wrap_angle_deg
 
-#: Exponents (p, q) of x^p y^q in D1 = [x^2, xy, y^2] and D2 = [x, y, 1].
-_QUADRATIC = ((2, 0), (1, 1), (0, 2))
-_LINEAR = ((1, 0), (0, 1), (0, 0))
+#: Exponents (p, q) of x^p y^q in [D1 | D2] = [x^2, xy, y^2, x, y, 1].
+_MONOMIALS = ((2, 0), (1, 1), (0, 2), (1, 0), (0, 1), (0, 0))
+#: The moments x^p y^q (p + q <= 4) that the scatter matrices of those monomials need, and
+#: where each entry of the 6 x 6 scatter matrix [D1 | D2]' [D1 | D2] finds its moment.
+_MOMENTS = tuple((p, q) for p in range(5) for q in range(5 - p))
+_SCATTER_INDEX = np.array([[_MOMENTS.index((pr + pc, qr + qc)) for pc, qc in _MONOMIALS]
+                           for pr, qr in _MONOMIALS])
+_MOMENT_ROWS = tuple(slice(_MOMENTS.index((p, 0)), _MOMENTS.index((p, 4 - p)) + 1)
+                     for p in range(5))
 #: Fewer points than this cannot pin down a conic (5 unknowns) with any redundancy.
 MIN_POINTS = 6
 
@@ -59,15 +65,6 @@ class EllipseFits:
         table = np.column_stack((self.centre_x, self.centre_y, self.half_major,
                                  self.half_minor, self.angle_deg))[keep]
         return [tuple(row) for row in table.tolist()]
-
-
-def _scatter(moments: np.ndarray, rows, cols) -> np.ndarray:
-    """Per-set sums of (row monomial * column monomial), shape (sets, 3, 3).
-
-    ``moments[5 p + q]`` holds the per-set sums of x^p y^q.
-    """
-    index = np.array([[5 * (pr + pc) + (qr + qc) for pc, qc in cols] for pr, qr in rows])
-    return np.moveaxis(moments[index], -1, 0)
 
 
 def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
@@ -109,11 +106,15 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
     u2, v2 = u * u, v * v
     powers_u = np.stack((np.ones_like(u), u, u2, u2 * u, u2 * u2))
     powers_v = np.stack((np.ones_like(v), v, v2, v2 * v, v2 * v2))
-    # Row 5p + q: weighted x^p y^q (weight folded in first: numpy is slow to broadcast it in).
-    moments = per_set(((powers_u * weight)[:, None, :] * powers_v[None, :, :]).reshape(25, -1))
-    s1 = _scatter(moments, _QUADRATIC, _QUADRATIC)
-    s2 = _scatter(moments, _QUADRATIC, _LINEAR)
-    s3 = _scatter(moments, _LINEAR, _LINEAR)
+    # Per-set sums of weighted x^p y^q (weight folded in first: numpy is slow to broadcast it
+    # in), then the scatter matrices S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 as blocks of one table.
+    weighted_u = powers_u * weight
+    products = np.empty((len(_MOMENTS), len(u)))
+    for p, rows in enumerate(_MOMENT_ROWS):  # the rows x^p y^q, q = 0 .. 4 - p
+        np.multiply(weighted_u[p], powers_v[:rows.stop - rows.start], out=products[rows])
+    moments = per_set(products)
+    scatter = np.moveaxis(moments[_SCATTER_INDEX], -1, 0)
+    s1, s2, s3 = scatter[:, :3, :3], scatter[:, :3, 3:], scatter[:, 3:, 3:]
 
     solvable = (n_points >= MIN_POINTS) & (np.abs(np.linalg.det(s3)) > 1e-9 * safe_total ** 3)
     s3[~solvable] = np.eye(3)
@@ -126,9 +127,10 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
     vectors = vectors.real
     constraint = 4.0 * vectors[:, 0] * vectors[:, 2] - vectors[:, 1] ** 2
     pick = np.argmax(constraint, axis=1)
-    quadratic = np.take_along_axis(vectors, pick[:, None, None], axis=2)[:, :, 0]
+    every_set = np.arange(n_sets)
+    quadratic = vectors[every_set, :, pick]
     linear = (t @ quadratic[:, :, None])[:, :, 0]
-    is_ellipse = solvable & (np.take_along_axis(constraint, pick[:, None], axis=1)[:, 0] > 0)
+    is_ellipse = solvable & (constraint[every_set, pick] > 0)
     return _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_points,
                              min_axis_ratio)
 

@@ -131,9 +131,15 @@ class RotatedTemplate:
         rows, columns = np.mgrid[:height, :width]
         disc = np.hypot(columns - self._centre[0], rows - self._centre[1]) <= radius
         self._needs_mask = bool(np.any(disc & (self._valid == 0)))
+        # Rotation 0 is asked for on many frames (a translation-only guess, the identity
+        # candidate): warp it once.
+        self._upright = self._rotated(0.0)
 
     def template(self, angle_deg: float) -> tuple[np.ndarray, np.ndarray | None]:
         """The template at ``angle_deg`` and its validity mask (None when all valid)."""
+        return self._upright if angle_deg == 0.0 else self._rotated(angle_deg)
+
+    def _rotated(self, angle_deg: float) -> tuple[np.ndarray, np.ndarray | None]:
         rotation = cv2.getRotationMatrix2D(self._centre, float(angle_deg), 1.0)
         rotation[:, 2] -= self.margin  # template pixel (0, 0) = rotated pixel (m, m)
         template = cv2.warpAffine(self._reference, rotation, self.size, flags=cv2.INTER_LINEAR)

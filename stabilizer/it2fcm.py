@@ -76,9 +76,10 @@ def _distance_ratios(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
     return ratio
 
 
-def _normalised_power(ratio: np.ndarray, m: float) -> np.ndarray:
-    powered = ratio ** (2.0 / (m - 1.0))
-    return powered / powered.sum(axis=0)
+def _normalised_power(ratio: np.ndarray, m: float, out: np.ndarray | None = None) -> np.ndarray:
+    powered = np.power(ratio, 2.0 / (m - 1.0), out=out)
+    powered /= powered.sum(axis=0)
+    return powered
 
 
 def type1_memberships(x: np.ndarray, centres: np.ndarray, m: float) -> np.ndarray:
@@ -89,14 +90,25 @@ def type1_memberships(x: np.ndarray, centres: np.ndarray, m: float) -> np.ndarra
     return _normalised_power(_distance_ratios(x, centres), m)
 
 
+def _membership_bounds(x: np.ndarray, centres: np.ndarray, m1: float, m2: float,
+                       out: np.ndarray) -> np.ndarray:
+    """Lower and upper memberships (eq. 2) written to ``out[0]`` and ``out[1]``, shape (C, N)
+    each; ``out[2]`` (same shape) is scratch space. Few, in-place array operations: the data
+    are at most 255 levels, so the cost is the number of numpy calls."""
+    ratio = _distance_ratios(x, centres)
+    u1 = _normalised_power(ratio, m1, out[0])
+    u2 = _normalised_power(ratio, m2, out[2])
+    np.maximum(u1, u2, out=out[1])
+    np.minimum(u1, u2, out=out[0])
+    return out
+
+
 def interval_memberships(x: np.ndarray, centres: np.ndarray, m1: float,
                          m2: float) -> tuple[np.ndarray, np.ndarray]:
     """Upper and lower memberships, shape (C, len(x)): the larger / smaller of the m1 and m2
     memberships (eq. 2)."""
-    ratio = _distance_ratios(x, centres)
-    u1 = _normalised_power(ratio, m1)
-    u2 = _normalised_power(ratio, m2)
-    return np.maximum(u1, u2), np.minimum(u1, u2)
+    bounds = _membership_bounds(x, centres, m1, m2, np.empty((3, centres.size, x.size)))
+    return bounds[1], bounds[0]
 
 
 def karnik_mendel(x: np.ndarray, lower_w: np.ndarray,
@@ -112,20 +124,26 @@ def karnik_mendel(x: np.ndarray, lower_w: np.ndarray,
         (lower weights for x_1..x_k, upper after); v_L the smallest (upper, then lower).
     """
     c, n = lower_w.shape
-    # Running sums of [lower, upper, lower * x, upper * x] with a leading zero column:
-    # column k holds the sums over the first k points.
-    running = np.zeros((4, c, n + 1))
-    np.cumsum(np.stack((lower_w, upper_w, lower_w * x, upper_w * x)), axis=2,
-              out=running[:, :, 1:])
-    # [lower - upper, lower*x - upper*x] over the first k points; adding the upper totals gives
-    # "lower for the first k, upper after" and subtracting from the lower totals the reverse.
-    switched = running[0::2] - running[1::2]
+    weights = np.empty((4, c, n))
+    weights[0], weights[1] = lower_w, upper_w
+    np.multiply(weights[:2], x, out=weights[2:])
     with np.errstate(invalid="ignore", divide="ignore"):
-        right = running[3, :, -1:] + switched[1]
-        right /= running[1, :, -1:] + switched[0]
-        left = running[2, :, -1:] - switched[1]
-        left /= running[0, :, -1:] - switched[0]
-    return np.fmin.reduce(left, axis=1), np.fmax.reduce(right, axis=1)
+        return _km_interval(weights, np.zeros((4, c, n + 1)))
+
+
+def _km_interval(weights: np.ndarray, running: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`karnik_mendel` from the stacked [lower, upper, lower * x, upper * x] weights,
+    shape (4, C, N); ``running`` is a (4, C, N + 1) buffer whose first column is zero."""
+    # Running sums with a leading zero column: column k holds the sums over the first k points.
+    np.cumsum(weights, axis=2, out=running[:, :, 1:])
+    # [lower - upper, lower*x - upper*x] over the first k points; adding the upper totals gives
+    # "lower for the first k, upper after" and subtracting from the lower totals the reverse
+    # (rows: [sum of weights, sum of weights * x]).
+    switched = running[0::2] - running[1::2]
+    right = running[1::2, :, -1:] + switched
+    left = running[0::2, :, -1:] - switched
+    return (np.fmin.reduce(left[1] / left[0], axis=1),
+            np.fmax.reduce(right[1] / right[0], axis=1))
 
 
 class IT2FCM:
@@ -164,13 +182,22 @@ class IT2FCM:
         v_left = v_right = centres
         converged = False
         iterations = 0
-        while iterations < self.max_iter and not converged:
-            upper, lower = interval_memberships(x, centres, self.m1, self.m2)
-            v_left, v_right = karnik_mendel(x, counts * lower ** self.m, counts * upper ** self.m)
-            new_centres = (v_left + v_right) / 2.0
-            converged = bool(np.max(np.abs(new_centres - centres)) < self.tol)
-            centres = new_centres
-            iterations += 1
+        # Buffers reused by every iteration: [lower, upper, lower * x, upper * x] weights
+        # (rows 0-2 first hold the memberships) and their running sums.
+        weights = np.empty((4, centres.size, x.size))
+        running = np.zeros((4, centres.size, x.size + 1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            while iterations < self.max_iter and not converged:
+                _membership_bounds(x, centres, self.m1, self.m2, weights)
+                bounds = weights[:2]
+                np.power(bounds, self.m, out=bounds)
+                bounds *= counts
+                np.multiply(bounds, x, out=weights[2:])
+                v_left, v_right = _km_interval(weights, running)
+                new_centres = (v_left + v_right) / 2.0
+                converged = bool(np.max(np.abs(new_centres - centres)) < self.tol)
+                centres = new_centres
+                iterations += 1
         return FuzzyClusters(centres, np.column_stack((v_left, v_right)),
                              self._level_labels(centres), iterations, converged)
 
@@ -207,20 +234,31 @@ class LabelCleaner:
         lost (noise) takes the first other label whose closing covers it, else 0. All label
         masks are filtered in one call as the channels of one image.
         """
+        return self.with_areas(labels, n_labels)[0]
+
+    def with_areas(self, labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
+        """The cleaned label image (see :meth:`__call__`) and the pixel count of each label
+        1..``n_labels`` in it (0 for a dropped label)."""
         small = labels.astype(np.uint8, copy=False)  # C <= 255; byte-wide work is faster
         planes = [(small == label).view(np.uint8) for label in range(1, n_labels + 1)]
         masks = cv2.merge(planes) if n_labels > 1 else planes[0]
         masks = cv2.morphologyEx(masks, cv2.MORPH_OPEN, self.kernel)
         masks = cv2.morphologyEx(masks, cv2.MORPH_CLOSE, self.kernel)
-        planes = cv2.split(masks) if n_labels > 1 else [masks]
-        cleaned = np.zeros_like(small)
-        covered = np.zeros_like(small)
-        for label, plane in enumerate(planes, start=1):
-            np.copyto(cleaned, np.uint8(label), where=plane.view(bool) & (small == label))
-            np.copyto(covered, np.uint8(label), where=plane.view(bool) & (covered == 0))
-        lost = (small > 0) & (cleaned == 0)
-        np.copyto(cleaned, covered, where=lost)
+        kept = np.zeros_like(small)  # 1 where a pixel's own label's cleaned mask holds it
+        for before, after in zip(planes, cv2.split(masks) if n_labels > 1 else [masks]):
+            kept |= before & after
+        cleaned = small * kept
+        # The few pixels their own label lost: the first label whose mask covers them, or 0.
+        lost = np.flatnonzero(cleaned != small)
+        covering = masks.reshape(-1, n_labels)[lost]
+        first = covering.argmax(axis=1)
+        cleaned.ravel()[lost] = (first + 1) * covering[np.arange(lost.size), first]
         areas = cv2.calcHist([cleaned], [0], None, [n_labels + 1], [0, n_labels + 1]).ravel()
+        dropped = areas < self.min_area
+        dropped[0] = False
+        if not dropped.any():
+            return cleaned, areas[1:]
         keep = np.arange(256, dtype=np.uint8)
-        keep[:n_labels + 1][areas < self.min_area] = 0
-        return cv2.LUT(cleaned, keep)
+        keep[:n_labels + 1][dropped] = 0
+        areas[dropped] = 0
+        return cv2.LUT(cleaned, keep), areas[1:]

@@ -46,7 +46,7 @@ class Motion:
         return self.status == OK
 
     @classmethod
-    def failed(cls, status: str, **diagnostics: Any) -> "Motion":
+    def failed(cls, status: str, **diagnostics: Any) -> Motion:
         """A Motion that carries no estimate, only the reason why."""
         if status == OK:
             raise ValueError("a failed Motion needs a status other than 'ok'")

@@ -95,15 +95,28 @@ class Type2FuzzyThreshold:
         inliers = np.zeros(values.shape, bool)
         if not finite.any():
             return RobustAngle(np.nan, np.nan, np.nan, inliers, MEDIAN_FALLBACK)
-        median = float(np.median(values[finite]))
-        if np.count_nonzero(finite) >= self.min_values:
-            positions, gamma = self.ultrafuzziness(values[finite])
-            left = positions <= median
-            right = positions >= median
-            lower = float(positions[left][np.argmax(gamma[left])])
-            upper = float(positions[right][np.argmax(gamma[right])])
+        data = values[finite]
+        median = _median(data)
+        if data.size >= self.min_values:
+            positions, gamma = self.ultrafuzziness(data)
+            # Positions ascend: those at or below the median are a prefix, those at or above
+            # it a suffix.
+            below = int(np.searchsorted(positions, median, side="right"))
+            above = int(np.searchsorted(positions, median, side="left"))
+            lower = float(positions[np.argmax(gamma[:below])])
+            upper = float(positions[above + np.argmax(gamma[above:])])
             inliers = finite & (values >= lower) & (values <= upper)
             if inliers.any():
                 return RobustAngle(float(values[inliers].mean()), lower, upper, inliers, None)
         return RobustAngle(median, np.nan, np.nan, np.zeros(values.shape, bool),
                            MEDIAN_FALLBACK)
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a non-empty array, bit for bit (the mean of the two middle values of
+    an even count), with less overhead on the few values here."""
+    ordered = np.sort(values).tolist()
+    middle = len(ordered) // 2
+    if len(ordered) % 2:
+        return ordered[middle]
+    return (ordered[middle - 1] + ordered[middle]) / 2.0

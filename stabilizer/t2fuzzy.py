@@ -261,8 +261,9 @@ class T2FuzzyEstimator:
         self.overlap_passes = int(overlap_passes)
 
         self.reference = reference
+        self._reference_valid = reference > 0
         smoothed = self._smooth(reference)
-        self.template = RotatedTemplate(smoothed, self.max_shift, valid=reference > 0)
+        self.template = RotatedTemplate(smoothed, self.max_shift, valid=self._reference_valid)
         # Half resolution (Gaussian pyramid) for choosing among candidate rotations cheaply.
         centre_x, centre_y = image_centre(reference.shape)
         self.coarse_template = RotatedTemplate(cv2.pyrDown(smoothed), self.max_shift // 2,
@@ -285,9 +286,8 @@ class T2FuzzyEstimator:
         far_region = self._has_far_region(image)
         initial = start if start is not None and start.size == seeds.n_clusters else seeds.seeds
         clusters = self.fcm.fit(seeds.level_counts, initial)
-        labels = self.cleaner(cv2.LUT(image, clusters.level_labels), clusters.centres.size)
-        areas = cv2.calcHist([labels], [0], None, [clusters.centres.size + 1],
-                             [0, clusters.centres.size + 1]).ravel()[1:]
+        labels, areas = self.cleaner.with_areas(cv2.LUT(image, clusters.level_labels),
+                                                clusters.centres.size)
         objects = (np.flatnonzero(areas) + 1).astype(np.int32)
         analysis = FrameAnalysis(clusters.centres, labels, objects, areas[objects - 1], None,
                                  clusters.iterations, clusters.converged,
@@ -381,7 +381,7 @@ class T2FuzzyEstimator:
         the image border in one frame would otherwise change shape between them)."""
         in_reference, in_current = self._common_disc(motion)
         ref_fits = self._fits(reference.labels, reference.objects,
-                              in_reference & (self.reference > 0), reference.far_region)
+                              in_reference & self._reference_valid, reference.far_region)
         cur_fits = self._fits(frame.labels, frame.objects, in_current & (current > 0),
                               frame.far_region)
         diagnostics["ellipses"] = cur_fits.as_tuples()

@@ -69,6 +69,21 @@ def _block_centre(index: np.ndarray, level: int, filter_length: int) -> np.ndarr
     return position
 
 
+def _even_sized(stack: np.ndarray) -> np.ndarray:
+    """Odd sizes of the last two axes extended by repeating the last row or column
+    (PyWavelets' "symmetric" mode, as far as one Haar step reaches)."""
+    if stack.shape[-2] % 2 or stack.shape[-1] % 2:
+        pad = [(0, 0)] * (stack.ndim - 2) + [(0, stack.shape[-2] % 2), (0, stack.shape[-1] % 2)]
+        stack = np.pad(stack, pad, mode="edge")
+    return stack
+
+
+def _block_sums(stack: np.ndarray) -> np.ndarray:
+    """Sums of the 2 x 2 blocks of the last two (even) axes."""
+    row_sum = stack[..., 0::2, :] + stack[..., 1::2, :]
+    return row_sum[..., 0::2] + row_sum[..., 1::2]
+
+
 def haar_sums(stack: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """One 2-D Haar analysis step over the last two axes, unnormalised.
 
@@ -77,15 +92,37 @@ def haar_sums(stack: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     then columns, each as contiguous pairs. Odd sizes are extended by repeating the last row or
     column (PyWavelets' "symmetric" mode).
     """
-    if stack.shape[-2] % 2 or stack.shape[-1] % 2:
-        pad = [(0, 0)] * (stack.ndim - 2) + [(0, stack.shape[-2] % 2), (0, stack.shape[-1] % 2)]
-        stack = np.pad(stack, pad, mode="edge")
+    stack = _even_sized(stack)
     upper, lower = stack[..., 0::2, :], stack[..., 1::2, :]
     row_sum, row_difference = upper + lower, upper - lower
     return (row_sum[..., 0::2] + row_sum[..., 1::2],
             (row_difference[..., 0::2] + row_difference[..., 1::2],
              row_sum[..., 0::2] - row_sum[..., 1::2],
              row_difference[..., 0::2] - row_difference[..., 1::2]))
+
+
+def haar_detail_energy(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """LL of :func:`haar_sums` and the float32 magnitude sqrt(H^2 + V^2 + D^2) of its details.
+
+    Without forming the three detail bands: for each 2 x 2 block (a, b, c, d) the Haar step is
+    orthogonal up to a factor 2, so LL^2 + H^2 + V^2 + D^2 = 4 (a^2 + b^2 + c^2 + d^2). For
+    integer stacks (masks and their block sums) every term is an integer computed exactly, so
+    the result equals the sum of the squared bands bit for bit.
+    """
+    stack = _even_sized(stack)
+    approximation = _block_sums(stack)
+    energy = _block_sums(np.square(stack, dtype=np.float32))
+    energy *= 4.0
+    energy -= np.square(approximation, dtype=np.float32)
+    return approximation, np.sqrt(energy, out=energy)
+
+
+def _even_steps(indices: np.ndarray) -> slice | np.ndarray:
+    """``indices`` as a slice when they are evenly spaced (cheap basic indexing), else as is."""
+    steps = np.diff(indices)
+    if indices.size >= 2 and steps[0] > 0 and np.all(steps == steps[0]):
+        return slice(int(indices[0]), int(indices[-1]) + 1, int(steps[0]))
+    return indices
 
 
 class WaveletFeatures:
@@ -136,6 +173,10 @@ class WaveletFeatures:
         approximation = masks
         subbands = []
         for lev in range(1, self.level + 1):
+            if self.wavelet.name == "haar" and self.merge_details:
+                approximation, energy = haar_detail_energy(approximation)
+                subbands.append((energy, lev, f"D{lev}"))
+                continue
             if self.wavelet.name == "haar":
                 approximation, details = haar_sums(approximation)
             else:
@@ -165,7 +206,7 @@ class WaveletFeatures:
             height, width = magnitude.shape[1:]
             row_y, column_x, pixels = self._block_grid(band_level, height, width, labels.shape)
             if not name.startswith("cA"):  # detail points on the measurement's edge: dropped
-                magnitude = np.where(near_edge[pixels], 0, magnitude)
+                np.copyto(magnitude, 0, where=near_edge[pixels])
             peak = magnitude.reshape(len(magnitude), -1).max(axis=1)
             floor = self.significance * peak[:, None, None] if self.significance > 0 else 0
             flat = np.flatnonzero(magnitude > floor)
@@ -180,17 +221,22 @@ class WaveletFeatures:
 
     def _block_grid(self, level: int, height: int, width: int, image_shape: tuple[int, int]):
         """Block-centre coordinates of a subband's rows and columns, and the image pixels
-        (np.ix_ index) nearest to them; cached per subband geometry."""
+        (an index: two slices when evenly spaced, as for Haar, else ``np.ix_``) nearest to them;
+        cached per subband geometry."""
         key = (level, height, width, image_shape)
         if key not in self._grids:
             row_y = _block_centre(np.arange(height), level, self.wavelet.dec_len)
             column_x = _block_centre(np.arange(width), level, self.wavelet.dec_len)
             rows = np.clip(np.rint(row_y).astype(np.intp), 0, image_shape[0] - 1)
             columns = np.clip(np.rint(column_x).astype(np.intp), 0, image_shape[1] - 1)
-            self._grids[key] = (row_y, column_x, np.ix_(rows, columns))
+            strided = (_even_steps(rows), _even_steps(columns))
+            pixels = (strided if all(isinstance(index, slice) for index in strided)
+                      else np.ix_(rows, columns))
+            self._grids[key] = (row_y, column_x, pixels)
         return self._grids[key]
 
     def _measurement_edge(self, valid: np.ndarray) -> np.ndarray:
         """Pixels within ``edge_margin`` of an invalid pixel or of the image border."""
-        invalid = np.pad(~valid, 1, constant_values=True).view(np.uint8)
-        return cv2.dilate(invalid, self._edge_kernel)[1:-1, 1:-1].view(bool)
+        # Outside the image counts as invalid: a constant border of ones.
+        return cv2.dilate((~valid).view(np.uint8), self._edge_kernel,
+                          borderType=cv2.BORDER_CONSTANT, borderValue=1).view(bool)

@@ -1,5 +1,6 @@
 """Stage 2: IT2-FCM on the weighted histogram, KM type reduction, labels, clean-up."""
 
+import cv2
 import numpy as np
 import pytest
 
@@ -121,6 +122,41 @@ def test_cleaner_removes_specks_fills_holes_and_keeps_invalid_pixels_out():
     assert np.all(cleaned[:, 35:] == 0)
     dropped = LabelCleaner(morph_size=3, min_area=500)(labels, 2)
     assert np.all(dropped[labels == 2] != 2)
+
+
+def _clean_label_by_label(labels, n_labels, morph_size, min_area):
+    """The clean-up rule written plainly, one label mask at a time."""
+    kernel = np.ones((morph_size, morph_size), np.uint8)
+    cleaned = np.zeros(labels.shape, np.int64)
+    covered = np.zeros(labels.shape, np.int64)
+    for label in range(1, n_labels + 1):
+        mask = (labels == label).astype(np.uint8)
+        mask = cv2.morphologyEx(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel),
+                                cv2.MORPH_CLOSE, kernel).astype(bool)
+        cleaned[mask & (labels == label)] = label
+        covered[mask & (covered == 0)] = label
+    lost = (labels > 0) & (cleaned == 0)
+    cleaned[lost] = covered[lost]
+    for label in range(1, n_labels + 1):
+        if np.count_nonzero(cleaned == label) < min_area:
+            cleaned[cleaned == label] = 0
+    return cleaned
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_cleaner_equals_the_label_by_label_rule_and_counts_its_areas(seed):
+    rng = np.random.default_rng(seed)
+    n_labels = int(rng.integers(1, 10))
+    labels = rng.integers(0, n_labels + 1, (48, 56)).astype(np.uint8)
+    labels[rng.random(labels.shape) < 0.6] = labels[0, 0]  # large regions with noise
+    for morph_size, min_area in ((3, 30), (5, 200), (1, 0)):
+        cleaner = LabelCleaner(morph_size, min_area)
+        cleaned, areas = cleaner.with_areas(labels, n_labels)
+        expected = _clean_label_by_label(labels, n_labels, morph_size, min_area)
+        np.testing.assert_array_equal(cleaned, expected)
+        np.testing.assert_array_equal(cleaner(labels, n_labels), cleaned)
+        np.testing.assert_array_equal(areas, np.bincount(expected.ravel(),
+                                                         minlength=n_labels + 1)[1:])
 
 
 @pytest.mark.parametrize("kwargs", [{"m1": 1.0}, {"m1": 3.0, "m2": 2.0}, {"tol": 0},

@@ -51,3 +51,10 @@ def test_nan_values_are_ignored():
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         Type2FuzzyThreshold(**kwargs)
+
+
+@pytest.mark.parametrize("values", [[3.0, 1.0], [0.1, 0.7, -0.2, 2.5], [5.0], [1e-9, 1.0 / 3.0]])
+def test_fallback_median_is_numpys_bit_for_bit(values):
+    robust = Type2FuzzyThreshold(min_values=10)(np.array(values))
+    assert robust.fallback == MEDIAN_FALLBACK
+    assert robust.value == np.median(values)

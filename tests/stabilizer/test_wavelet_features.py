@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import pywt
 
-from stabilizer.wavelet_features import WaveletFeatures, haar_sums
+from stabilizer.wavelet_features import WaveletFeatures, haar_detail_energy, haar_sums
 
 
 def _square_labels():
@@ -33,6 +33,53 @@ def test_haar_sums_are_twice_pywavelets(shape):
     np.testing.assert_allclose(ours[0], 2 * theirs[0], atol=1e-5)
     for mine, reference in zip(ours[1], theirs[1]):
         np.testing.assert_allclose(mine, 2 * reference, atol=1e-5)
+
+
+@pytest.mark.parametrize("shape", [(3, 144, 176), (2, 17, 23)])
+def test_detail_energy_equals_the_squared_bands_bit_for_bit_on_masks(shape):
+    masks = (np.random.default_rng(2).random(shape) > 0.6).astype(np.int16)
+    level_input = masks
+    for _ in range(2):  # level 1 on the masks, level 2 on their block sums
+        approximation, details = haar_sums(level_input)
+        squares = [np.square(band, dtype=np.float32) for band in details]
+        ours_approximation, energy = haar_detail_energy(level_input)
+        np.testing.assert_array_equal(ours_approximation, approximation)
+        assert energy.dtype == np.float32
+        np.testing.assert_array_equal(energy, np.sqrt(squares[0] + squares[1] + squares[2]))
+        level_input = approximation
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db2"])  # evenly spaced block centres or not
+def test_every_detail_point_lies_on_a_pixel_clear_of_the_measurement_edge(wavelet):
+    margin = 2
+    features = WaveletFeatures(wavelet=wavelet, edge_margin=margin)
+    labels = np.ones((64, 64), np.int32)
+    labels[17:35, 21:45] = 2  # edges off the block grid: detail points at both levels
+    valid = np.ones(labels.shape, bool)
+    valid[:, 40:] = False
+    labels[~valid] = 0
+    sets = features(labels, np.array([1, 2]), valid)
+    detail = np.array([not name.startswith("cA") for name in features.subband_names])
+    chosen = detail[sets.set_id % sets.n_subbands]
+    assert chosen.any()
+    columns = np.clip(np.rint(sets.x[chosen]), 0, 63)
+    rows = np.clip(np.rint(sets.y[chosen]), 0, 63)
+    # Clear of the border and of the invalid columns 40.. by more than the margin.
+    assert columns.min() >= margin and rows.min() >= margin and rows.max() <= 63 - margin
+    assert columns.max() <= 39 - margin
+
+
+def test_a_detail_point_is_judged_by_the_pixel_nearest_its_block_centre():
+    # The level-1 block of columns 38-39 has its centre at 38.5; its nearest pixel (38, by
+    # round-half-to-even) is 2 columns from the invalid column 40: clear of a 1-pixel margin.
+    features = WaveletFeatures(edge_margin=1)
+    labels = np.ones((64, 64), np.int32)
+    labels[17:35, 21:45] = 2
+    valid = np.ones(labels.shape, bool)
+    valid[:, 40:] = False
+    labels[~valid] = 0
+    x, _, _ = _points(features(labels, np.array([1, 2]), valid), 1, "D1", features)
+    assert x.max() == 38.5
 
 
 def test_decomposition_equals_wavedec2_magnitudes():
