@@ -34,6 +34,8 @@ _SCATTER_INDEX = np.array([[_MOMENTS.index((pr + pc, qr + qc)) for pc, qc in _MO
                            for pr, qr in _MONOMIALS])
 _MOMENT_ROWS = tuple(slice(_MOMENTS.index((p, 0)), _MOMENTS.index((p, 4 - p)) + 1)
                      for p in range(5))
+#: C1^-1 M is M with rows reversed and scaled by these (C1 = [[0, 0, 2], [0, -1, 0], [2, 0, 0]]).
+_C1_INVERSE_ROWS = np.array([[0.5], [-1.0], [0.5]])
 #: Fewer points than this cannot pin down a conic (5 unknowns) with any redundancy.
 MIN_POINTS = 6
 
@@ -85,7 +87,7 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
     set_id, x, y, weight = set_id[order], x[order], y[order], weight[order]
     n_points = np.bincount(set_id, minlength=n_sets)
     present = np.flatnonzero(n_points)
-    starts = np.concatenate(([0], np.cumsum(n_points[present])[:-1])).astype(np.intp)
+    starts = np.searchsorted(set_id, present)
 
     def per_set(rows: np.ndarray) -> np.ndarray:
         """Sums of each row over each set's points, shape (rows, n_sets); 0 for empty sets."""
@@ -117,12 +119,16 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
     s1, s2, s3 = scatter[:, :3, :3], scatter[:, :3, 3:], scatter[:, 3:, 3:]
 
     solvable = (n_points >= MIN_POINTS) & (np.abs(np.linalg.det(s3)) > 1e-9 * safe_total ** 3)
-    s3[~solvable] = np.eye(3)
+    unsolvable = ~solvable
+    any_unsolvable = bool(unsolvable.any())
+    if any_unsolvable:  # harmless identity systems, discarded below
+        s3[unsolvable] = np.eye(3)
     t = -np.linalg.solve(s3, np.swapaxes(s2, 1, 2))
     m = s1 + s2 @ t
     # C1^-1 M with C1 = [[0, 0, 2], [0, -1, 0], [2, 0, 0]] (the constraint 4ac - b^2).
-    reduced = np.stack((m[:, 2] / 2.0, -m[:, 1], m[:, 0] / 2.0), axis=1)
-    reduced[~solvable] = np.eye(3)
+    reduced = m[:, ::-1] * _C1_INVERSE_ROWS
+    if any_unsolvable:
+        reduced[unsolvable] = np.eye(3)
     _, vectors = np.linalg.eig(reduced)
     vectors = vectors.real
     constraint = 4.0 * vectors[:, 0] * vectors[:, 2] - vectors[:, 1] ** 2
@@ -139,8 +145,7 @@ def _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_p
                       min_axis_ratio) -> EllipseFits:
     """Centre, half-axes and major-axis angle of conics fitted in normalised coordinates."""
     sign = np.where(quadratic[:, 0] + quadratic[:, 2] < 0, -1.0, 1.0)[:, None]
-    a, b, c = (sign * quadratic).T
-    d, e, f = (sign * linear).T
+    a, b, c, d, e, f = (sign * np.hstack((quadratic, linear))).T
     with np.errstate(invalid="ignore", divide="ignore"):
         det = 4.0 * a * c - b * b
         x0 = (b * e - 2.0 * c * d) / det
@@ -154,17 +159,10 @@ def _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_p
     # Q = [[a, b/2], [b/2, c]]: its larger eigenvalue's axis is at atan2(b, a - c) / 2, the major
     # axis (smaller eigenvalue) is perpendicular to it.
     angle = np.mod(np.degrees(0.5 * np.arctan2(b, a - c)) + 90.0, 180.0)
-    nan = np.full(a.shape, np.nan)
     oriented = valid & (half_major >= min_axis_ratio * half_minor)
-    return EllipseFits(
-        valid=valid, oriented=oriented,
-        angle_deg=np.where(valid, angle, nan),
-        centre_x=np.where(valid, x0 * spread + mean_x, nan),
-        centre_y=np.where(valid, y0 * spread + mean_y, nan),
-        half_major=np.where(valid, half_major, nan),
-        half_minor=np.where(valid, half_minor, nan),
-        n_points=n_points,
-    )
+    geometry = np.where(valid, np.stack((angle, x0 * spread + mean_x, y0 * spread + mean_y,
+                                         half_major, half_minor)), np.nan)
+    return EllipseFits(valid, oriented, *geometry, n_points=n_points)
 
 
 def axis_angle_difference(reference_deg: np.ndarray, current_deg: np.ndarray) -> np.ndarray:

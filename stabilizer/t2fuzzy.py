@@ -441,20 +441,19 @@ class T2FuzzyEstimator:
     def _angle_estimates(self, ref_fits: EllipseFits, cur_fits: EllipseFits,
                          reference: FrameAnalysis,
                          frame: FrameAnalysis) -> tuple[np.ndarray, np.ndarray]:
-        """Angle differences of the same subbands of corresponding objects, and their sources."""
-        n_sub = len(self.subbands)
-        angles, sources = [], []
-        for ref_index, cur_index in self._correspondence(reference, frame):
-            ref_sets = ref_index * n_sub + np.arange(n_sub)
-            cur_sets = cur_index * n_sub + np.arange(n_sub)
-            usable = ref_fits.oriented[ref_sets] & cur_fits.oriented[cur_sets]
-            angles.append(axis_angle_difference(ref_fits.angle_deg[ref_sets[usable]],
-                                                cur_fits.angle_deg[cur_sets[usable]]))
-            for subband in np.flatnonzero(usable):
-                sources.append((reference.objects[ref_index], frame.objects[cur_index], subband))
-        if not angles:
-            return np.empty(0), np.empty((0, 3), np.int32)
-        return np.concatenate(angles), np.asarray(sources, np.int32).reshape(-1, 3)
+        """Angle differences of the same subbands of corresponding objects, and their sources
+        (pair by pair, each pair's subbands in order)."""
+        pairs = np.array(self._correspondence(reference, frame), np.intp).reshape(-1, 2)
+        subbands = np.arange(len(self.subbands))
+        ref_sets = pairs[:, :1] * subbands.size + subbands
+        cur_sets = pairs[:, 1:] * subbands.size + subbands
+        usable = ref_fits.oriented[ref_sets] & cur_fits.oriented[cur_sets]
+        angles = axis_angle_difference(ref_fits.angle_deg[ref_sets[usable]],
+                                       cur_fits.angle_deg[cur_sets[usable]])
+        pair, subband = np.nonzero(usable)
+        sources = np.column_stack((reference.objects[pairs[pair, 0]],
+                                   frame.objects[pairs[pair, 1]], subband)).astype(np.int32)
+        return angles, sources
 
     def _correspondence(self, reference: FrameAnalysis,
                         frame: FrameAnalysis) -> list[tuple[int, int]]:

@@ -19,8 +19,9 @@ Invalid pixels never count as scene: a detail coefficient whose block lies withi
 measurement, not of an object, and is dropped. All objects are transformed at once on a stacked
 (objects, H, W) array. For the Haar wavelet (the default) one analysis step is the 2 x 2 block
 sum and differences, computed here by reshaping (PyWavelets' coefficients times 2 per level, which
-a test checks; several times faster on these small integer stacks); other wavelets use
-``pywt.dwt2``.
+a test checks; several times faster on these small integer stacks), and the merged detail
+magnitude of a block follows from its sums without the three bands (:func:`haar_detail_energy`);
+other wavelets use ``pywt.dwt2``.
 """
 
 from __future__ import annotations
@@ -101,17 +102,20 @@ def haar_sums(stack: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
              row_difference[..., 0::2] - row_difference[..., 1::2]))
 
 
-def haar_detail_energy(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def haar_detail_energy(stack: np.ndarray,
+                       binary: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """LL of :func:`haar_sums` and the float32 magnitude sqrt(H^2 + V^2 + D^2) of its details.
 
     Without forming the three detail bands: for each 2 x 2 block (a, b, c, d) the Haar step is
     orthogonal up to a factor 2, so LL^2 + H^2 + V^2 + D^2 = 4 (a^2 + b^2 + c^2 + d^2). For
     integer stacks (masks and their block sums) every term is an integer computed exactly, so
-    the result equals the sum of the squared bands bit for bit.
+    the result equals the sum of the squared bands bit for bit. ``binary``: the stack holds
+    only 0 and 1 (masks), so a^2 = a and the block sums of the squares are LL itself.
     """
     stack = _even_sized(stack)
     approximation = _block_sums(stack)
-    energy = _block_sums(np.square(stack, dtype=np.float32))
+    energy = (approximation.astype(np.float32) if binary
+              else _block_sums(np.square(stack, dtype=np.float32)))
     energy *= 4.0
     energy -= np.square(approximation, dtype=np.float32)
     return approximation, np.sqrt(energy, out=energy)
@@ -168,13 +172,15 @@ class WaveletFeatures:
         """Subbands of an (objects, H, W) mask stack: (magnitudes, level, name) per set.
 
         Magnitudes are up to a constant factor per subband (all that the relative significance
-        and weights use); merged details are sqrt(cH^2 + cV^2 + cD^2).
+        and weights use); merged details are sqrt(cH^2 + cV^2 + cD^2). A boolean stack is
+        taken as 0/1 masks.
         """
-        approximation = masks
+        binary = masks.dtype == bool
+        approximation = masks.astype(np.int16) if binary else masks
         subbands = []
         for lev in range(1, self.level + 1):
             if self.wavelet.name == "haar" and self.merge_details:
-                approximation, energy = haar_detail_energy(approximation)
+                approximation, energy = haar_detail_energy(approximation, binary and lev == 1)
                 subbands.append((energy, lev, f"D{lev}"))
                 continue
             if self.wavelet.name == "haar":
@@ -202,7 +208,7 @@ class WaveletFeatures:
         masks = (labels[None, :, :] == np.asarray(object_labels)[:, None, None])
         near_edge = self._measurement_edge(valid)
         xs, ys, weights, ids = [], [], [], []
-        for magnitude, band_level, name in self.decompose(masks.astype(np.int16)):
+        for magnitude, band_level, name in self.decompose(masks):
             height, width = magnitude.shape[1:]
             row_y, column_x, pixels = self._block_grid(band_level, height, width, labels.shape)
             if not name.startswith("cA"):  # detail points on the measurement's edge: dropped

@@ -46,6 +46,8 @@ def test_detail_energy_equals_the_squared_bands_bit_for_bit_on_masks(shape):
         np.testing.assert_array_equal(ours_approximation, approximation)
         assert energy.dtype == np.float32
         np.testing.assert_array_equal(energy, np.sqrt(squares[0] + squares[1] + squares[2]))
+        if level_input is masks:  # 0/1 values: the shortcut for masks gives the same
+            np.testing.assert_array_equal(haar_detail_energy(masks, binary=True)[1], energy)
         level_input = approximation
 
 
