@@ -44,8 +44,8 @@ BASELINE = "t2fuzzy"
 
 def _scenes(n_frames: int, n_scenes: int, seed: int) -> list[tuple[np.ndarray, list]]:
     """``n_scenes`` uint8 disparity references, each with its share of moved copies."""
-    # The scene generator lives with the tests; the same one the accuracy tests use.
-    from tests.synthetic import make_depth_scene, random_motion
+    # The same scene generator as the accuracy tests.
+    from sim.synthetic import make_depth_scene, random_motion
 
     rng = np.random.default_rng(seed)
     per_scene = max(1, n_frames // n_scenes)

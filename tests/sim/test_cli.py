@@ -12,7 +12,7 @@ from scenarios import SCENARIOS_DIR
 from sim.cli import DEFAULT_SCENARIO, build_parser, main
 from sim.scenario import list_scenarios
 from stabilizer import depth_to_disparity
-from tests.synthetic import make_depth_scene
+from sim.synthetic import make_depth_scene
 
 SUBCOMMANDS = ("run", "ideal", "aggregate", "list", "bench", "gate", "sweep")
 

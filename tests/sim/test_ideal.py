@@ -9,7 +9,7 @@ import pytest
 
 from sim.ideal import IdealConfig, load_trajectory, paper_cycle, run_ideal, trajectory_from_run
 from stabilizer import depth_to_disparity
-from tests.synthetic import make_depth_scene
+from sim.synthetic import make_depth_scene
 
 
 def test_paper_cycle_has_the_papers_magnitudes():

@@ -1,6 +1,6 @@
 """The peer estimators (SIFT, ICP, ECC, Fourier-Mellin) against known synthetic motions.
 
-Each current frame is a synthetic disparity scene warped by a known Motion (tests/synthetic.py,
+Each current frame is a synthetic disparity scene warped by a known Motion (sim/synthetic.py,
 ``apply_motion``: nearest-neighbour, uncovered pixels invalid), within +-15 deg and +-40 px (the
 paper's walking peaks: x +-40 px, rotation +-12 deg). Tolerances are per method, from what each
 did on 300 such random cases (ok / accurate = within 1 deg and 2 px: sift 280 / 249,
@@ -48,7 +48,7 @@ from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator
 from stabilizer.peers.sift import SiftEstimator
-from tests.synthetic import SR4000_SHAPE, make_depth_scene, random_motion
+from sim.synthetic import SR4000_SHAPE, make_depth_scene, random_motion
 
 ESTIMATORS = {"sift": SiftEstimator, "icp": IcpEstimator, "ecc": EccEstimator,
               "fourier_mellin": FourierMellinEstimator}
