@@ -109,8 +109,8 @@ def test_bad_scene_name_or_seed_is_a_value_error():
 
 
 def test_robot_attaches_and_its_camera_is_an_sr4000():
-    world = pytest.importorskip("sim.world")
-    humanoid = pytest.importorskip("sim.humanoid")
+    from sim import humanoid, world
+
     scene = build_scene("corridor", 0)
     model = world.compile_world(world.assemble(scene.arena, scene.start_xy,
                                                scene.start_yaw_deg))
