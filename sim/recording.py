@@ -293,8 +293,11 @@ class RunRecorder:
             if labels is None:
                 continue
             labels = np.asarray(labels)
-            self._ensure_annotations(int(labels.max(initial=0)))
-            self._stream.log(SEGMENTATION, rr.SegmentationImage(labels))
+            n_labels = int(labels.max(initial=0))
+            self._ensure_annotations(n_labels)
+            # A few labels: uint8 stores them in a quarter of the int32 bytes.
+            compact = np.uint8 if n_labels < 256 else np.uint16
+            self._stream.log(SEGMENTATION, rr.SegmentationImage(labels.astype(compact)))
             ellipses = motion.diagnostics.get("ellipses") or ()
             outlines = [ellipse_outline(*map(float, ellipse)) + PIXEL_CENTRE
                         for ellipse in ellipses]
