@@ -96,22 +96,29 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
             sums[:, present] = np.add.reduceat(rows, starts, axis=1)
         return sums
 
-    total, sum_x, sum_y = per_set(np.stack((weight, weight * x, weight * y)))
+    # One work table for all per-point rows, filled in place (a fresh array per row costs
+    # measurably more: cache misses on a frame's thousands of points). It holds the weighted
+    # coordinates, then the powers of u and v and the products x^p y^q (weight folded in
+    # first: numpy is slow to broadcast it in) whose per-set sums give the scatter matrices
+    # S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 as blocks of one table.
+    work = np.empty((len(_MOMENTS) + 10, len(x)))
+    work[0] = weight
+    np.multiply(weight, x, out=work[1])
+    np.multiply(weight, y, out=work[2])
+    total, sum_x, sum_y = per_set(work[:3])
     safe_total = np.where(total > 0, total, 1.0)
     mean_x, mean_y = sum_x / safe_total, sum_y / safe_total
     u = x - mean_x[set_id]
     v = y - mean_y[set_id]
-    spread = np.sqrt(per_set((weight * (u * u + v * v))[None])[0] / safe_total / 2)
+    squares = np.multiply(u, u, out=work[3])
+    squares += np.multiply(v, v, out=work[4])
+    spread = np.sqrt(per_set(np.multiply(weight, squares, out=work[3:4]))[0] / safe_total / 2)
     spread = np.where(spread > 0, spread, 1.0)
-    u = u / spread[set_id]
-    v = v / spread[set_id]
-    u2, v2 = u * u, v * v
-    powers_u = np.stack((np.ones_like(u), u, u2, u2 * u, u2 * u2))
-    powers_v = np.stack((np.ones_like(v), v, v2, v2 * v, v2 * v2))
-    # Per-set sums of weighted x^p y^q (weight folded in first: numpy is slow to broadcast it
-    # in), then the scatter matrices S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 as blocks of one table.
-    weighted_u = powers_u * weight
-    products = np.empty((len(_MOMENTS), len(u)))
+    u /= spread[set_id]
+    v /= spread[set_id]
+    weighted_u, powers_v = _powers(u, work[:5]), _powers(v, work[5:10])
+    np.multiply(weighted_u, weight, out=weighted_u)
+    products = work[10:]
     for p, rows in enumerate(_MOMENT_ROWS):  # the rows x^p y^q, q = 0 .. 4 - p
         np.multiply(weighted_u[p], powers_v[:rows.stop - rows.start], out=products[rows])
     moments = per_set(products)
@@ -139,6 +146,16 @@ def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
     is_ellipse = solvable & (constraint[every_set, pick] > 0)
     return _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_points,
                              min_axis_ratio)
+
+
+def _powers(values: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out`` (5 rows) filled with values^0 .. values^4 (the squares reused)."""
+    out[0] = 1.0
+    out[1] = values
+    np.multiply(values, values, out=out[2])
+    np.multiply(out[2], values, out=out[3])
+    np.multiply(out[2], out[2], out=out[4])
+    return out
 
 
 def _ellipse_geometry(quadratic, linear, is_ellipse, mean_x, mean_y, spread, n_points,
