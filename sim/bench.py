@@ -76,11 +76,11 @@ def simulated_scenes(scenario: str = "corridor_straight", n_frames: int = 150,
 
     The first ``skip_s`` seconds (standing, before the first step) are left out.
     """
-    from sim.runner import build_robot, open_sensor, walk_frames
+    from sim.runner import open_sensor, scenario_robot, walk_frames
     from sim.scenario import load_scenario
 
     loaded = load_scenario(scenario)
-    robot = build_robot(loaded)
+    robot = scenario_robot(loaded)
     n_skip = int(skip_s * loaded.sensor.fps)
     cycles: dict[int, list[np.ndarray]] = {}
     with open_sensor(loaded, robot) as sensor:

@@ -93,16 +93,12 @@ def load_trajectory(trajectory: str, n_frames: int = 30) -> list[Motion]:
 
 def render_scene_still(scene_name: str, seed: int = 0) -> np.ndarray:
     """Noise-free SR4000 depth (metres) seen by the standing robot at the scene's start."""
-    from sim.scenes import build_scene
+    from sim.runner import build_robot
     from sim.sr4000 import SR4000
     from sim.tof_model import TOF_PRESETS
-    from sim.walking import RobotSimulation
-    from sim.world import assemble, compile_world
 
-    scene = build_scene(scene_name, seed)
-    model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
-    robot = RobotSimulation(model, seed=seed)
-    with SR4000(model, robot.camera_name, TOF_PRESETS["ideal"]) as sensor:
+    robot = build_robot(scene_name, seed, seed=seed)
+    with SR4000(robot.model, robot.camera_name, TOF_PRESETS["ideal"]) as sensor:
         return sensor.capture_still(robot.data).depth_m
 
 
@@ -133,7 +129,7 @@ def run_ideal(config: IdealConfig) -> dict:
     """Run the ideal experiment; write and return the metrics (metrics.json)."""
     from sim.ground_truth import GroundTruth
     from sim.report import write_run_outputs
-    from sim.runner import _estimate
+    from sim.runner import timed_estimate
     from sim.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
     from stabilizer import compensate
 
@@ -149,7 +145,7 @@ def run_ideal(config: IdealConfig) -> dict:
         truth = GroundTruth(truth_motion, 0.0, n_valid)
         itf.add(RAW_STREAM, current, gait_cycle=0, reference_index=-1)
         for method in methods:
-            motion, ms = _estimate(stabilizers[method], current)
+            motion, ms = timed_estimate(stabilizers[method], current)
             itf.add(method, compensate(current, motion), gait_cycle=0, reference_index=-1)
             records.append(FrameRecord.score(
                 frame_index=index, time_s=index / IDEAL_FPS, gait_cycle=0, reference_index=-1,

@@ -79,16 +79,13 @@ class _ReferenceTracker:
         self.stabilizers: dict[str, Stabilizer] = {}
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
 
-    def needs_new(self, frame, cycle: int) -> bool:
-        if self.frame is None:
-            return True
-        if self.policy == "previous":
-            return True
-        return self.policy == "cycle_start" and cycle != self.cycle
+    def _needs_new(self, cycle: int) -> bool:
+        return (self.frame is None or self.policy == "previous"
+                or (self.policy == "cycle_start" and cycle != self.cycle))
 
     def reference_for(self, frame, cycle: int, previous_frame):
         """The reference of ``frame``; analysed once per reference change."""
-        if self.needs_new(frame, cycle):
+        if self._needs_new(cycle):
             reference = frame if (self.policy != "previous" or previous_frame is None) \
                 else previous_frame
             self.frame, self.cycle = reference, cycle
@@ -100,15 +97,24 @@ class _ReferenceTracker:
         return self.frame
 
 
-def build_robot(scenario):
-    """The scenario's scene with the humanoid standing at its start, ready to walk."""
+def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0):
+    """Scene ``scene_name`` with the humanoid standing at its start, ready to walk.
+
+    ``gait`` is a GaitParams or a preset name; ``seed`` perturbs the initial joint angles.
+    """
     from sim.scenes import build_scene
     from sim.walking import RobotSimulation
     from sim.world import assemble, compile_world
 
-    scene = build_scene(scenario.scene, scenario.scene_seed)
+    scene = build_scene(scene_name, scene_seed)
     model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
-    return RobotSimulation(model, gait=scenario.gait.params(), seed=scenario.seed)
+    return RobotSimulation(model, gait=gait, seed=seed)
+
+
+def scenario_robot(scenario):
+    """The robot of a loaded scenario: its scene, gait and seed."""
+    return build_robot(scenario.scene, scenario.scene_seed, scenario.gait.params(),
+                       scenario.seed)
 
 
 def open_sensor(scenario, robot):
@@ -127,15 +133,21 @@ def walk_frames(scenario, robot, sensor, n_frames: int):
     """
     for index in range(n_frames):
         for exposure_time in sensor.exposure_times(index):
-            while robot.time + 0.5 * robot.control_period_s < exposure_time:
-                command = scenario.command_at(robot.time)
-                robot.command(command.speed, command.yaw_rate)
-                robot.step()
+            walk_until(scenario, robot, exposure_time)
             sensor.expose(robot.data)
         yield sensor.read_frame(index)
 
 
-def _estimate(stabilizer: Stabilizer, current) -> tuple[Motion, float]:
+def walk_until(scenario, robot, time_s: float) -> None:
+    """Step the robot under the scenario's commands to the control step nearest ``time_s``."""
+    while robot.time + 0.5 * robot.control_period_s < time_s:
+        command = scenario.command_at(robot.time)
+        robot.command(command.speed, command.yaw_rate)
+        robot.step()
+
+
+def timed_estimate(stabilizer: Stabilizer, current) -> tuple[Motion, float]:
+    """The estimate of ``current`` and the milliseconds it took; an exception becomes a status."""
     start = time.perf_counter()
     try:
         motion = stabilizer.estimate(current)
@@ -168,7 +180,7 @@ def run(config: RunConfig) -> dict:
     out_dir = Path(config.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    robot = build_robot(scenario)
+    robot = scenario_robot(scenario)
     recording_path = out_dir / RECORDING_RRD
     recording = config.record and scenario.recording.enabled
     scenario_dict = scenario.to_dict()
@@ -213,7 +225,7 @@ def run(config: RunConfig) -> dict:
                                      current_depth_m=frame.true_depth_m)
                 estimates, compensated = {}, {}
                 for method in methods:
-                    motion, ms = _estimate(tracker.stabilizers[method], frame.disparity8)
+                    motion, ms = timed_estimate(tracker.stabilizers[method], frame.disparity8)
                     estimates[method] = motion
                     compensated[method] = compensate(frame.disparity8, motion)
                     records.append(FrameRecord.score(
