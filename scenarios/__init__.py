@@ -1,4 +1,4 @@
-"""Shipped scenario files (TOML); see sim.scenario for their keys and defaults."""
+"""Shipped scenario files (TOML); see sim.harness.scenario for their keys and defaults."""
 
 from pathlib import Path
 

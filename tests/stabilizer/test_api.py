@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import stabilizer
-from sim.synthetic import make_depth_scene
+from stabilizer.testing import make_depth_scene
 
 REFERENCE = stabilizer.depth_to_disparity(make_depth_scene(0))
 

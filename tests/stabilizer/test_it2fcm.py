@@ -13,7 +13,7 @@ from stabilizer.it2fcm import (
     karnik_mendel,
     type1_memberships,
 )
-from sim.synthetic import make_depth_scene
+from stabilizer.testing import make_depth_scene
 
 
 def _iterative_km(x, lower, upper, right):

@@ -48,7 +48,7 @@ from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator
 from stabilizer.peers.sift import SiftEstimator
-from sim.synthetic import SR4000_SHAPE, make_depth_scene, random_motion
+from stabilizer.testing import SR4000_SHAPE, make_depth_scene, random_motion
 
 ESTIMATORS = {"sift": SiftEstimator, "icp": IcpEstimator, "ecc": EccEstimator,
               "fourier_mellin": FourierMellinEstimator}

@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 
 from stabilizer import Motion, Stabilizer, apply_motion, available_methods, estimate
 from stabilizer.inputs import depth_to_disparity
-from sim.synthetic import SR4000_SHAPE, make_depth_scene
+from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 
 METHODS = available_methods()
 #: Smallest side stabilizer/inputs.py accepts.

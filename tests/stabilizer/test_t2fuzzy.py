@@ -7,7 +7,7 @@ import pytest
 import stabilizer
 from stabilizer.motion import Motion, apply_motion, compensate
 from stabilizer.t2fuzzy import NO_ROTATION, NO_TRANSLATION, T2FuzzyEstimator
-from sim.synthetic import make_depth_scene, random_motion
+from stabilizer.testing import make_depth_scene, random_motion
 
 N_CASES = 100
 

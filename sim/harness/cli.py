@@ -1,0 +1,196 @@
+"""``egostab``: the harness's one console command.
+
+Subcommands: ``run`` a walking scenario, ``ideal`` (the paper's ideal experiment on one image),
+``aggregate`` several runs into one table, ``list`` the shipped scenarios, ``bench`` the speed
+figures, ``gate`` the CI regression gate, ``sweep`` many runs in parallel (locally or on Ray).
+Each has ``--help``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+#: Scenario run by ``egostab run`` with no arguments.
+DEFAULT_SCENARIO = "corridor_straight"
+#: Where runs write unless told otherwise: results/<scenario name>/.
+DEFAULT_RESULTS = Path("results")
+
+
+def _methods(text: str) -> tuple[str, ...]:
+    from stabilizer import available_methods
+
+    methods = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [name for name in methods if name not in available_methods()]
+    if unknown or not methods:
+        raise argparse.ArgumentTypeError(
+            f"unknown method(s) {', '.join(unknown) or '(none given)'}; accepted: "
+            f"{', '.join(available_methods())} (comma separated), or 'all'")
+    return methods
+
+
+def _method_list(text: str) -> tuple[str, ...]:
+    from stabilizer import available_methods
+
+    return available_methods() if text == "all" else _methods(text)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from sim.harness.runner import RunConfig, run, scenario_name
+    from sim.harness.report import terminal_summary
+
+    out_dir = args.out or DEFAULT_RESULTS / scenario_name(args.scenario)
+    metrics = run(RunConfig(scenario=args.scenario, out_dir=str(out_dir), methods=args.methods,
+                            record=not args.no_record, max_frames=args.max_frames,
+                            seed=args.seed, progress=not args.quiet))
+    print(terminal_summary(metrics, out_dir))
+    if metrics["run"].get("message"):
+        print(f"Note: {metrics['run']['message']}")
+    return {"complete": 0, "fell": 0, "interrupted": 130}.get(metrics["status"], 1)
+
+
+def _cmd_ideal(args: argparse.Namespace) -> int:
+    from sim.harness.ideal import IdealConfig, run_ideal
+    from sim.harness.report import terminal_summary
+
+    metrics = run_ideal(IdealConfig(image=args.image, out_dir=str(args.out),
+                                    trajectory=args.trajectory, methods=args.methods,
+                                    n_frames=args.frames))
+    print(terminal_summary(metrics, args.out))
+    return 0
+
+
+def _cmd_aggregate(args: argparse.Namespace) -> int:
+    from sim.harness.report import aggregate_runs
+
+    table = aggregate_runs(args.runs, out_path=args.out)
+    print(table)
+    return 0
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from sim.harness.scenario import list_scenarios, load_scenario
+
+    for path in list_scenarios():
+        scenario = load_scenario(path)
+        print(f"{path.stem:24s} {scenario.scene:10s} {scenario.duration_s:6.1f} s  "
+              f"{scenario.description}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from sim.harness.bench import run_benchmarks
+
+    run_benchmarks(quick=args.quick, out_path=args.out)
+    return 0
+
+
+def _cmd_gate(args: argparse.Namespace) -> int:
+    from sim.harness.gate import run_gate
+
+    return run_gate(baseline_path=args.baseline, update=args.update_baseline,
+                    out_dir=args.out)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
+
+    spec = load_sweep(args.sweep_file)
+    out_dir = args.out or default_sweep_dir(spec, DEFAULT_RESULTS)
+    try:
+        result = run_sweep(spec, out_dir, backend="ray" if args.ray else "local",
+                           workers=args.workers, ray_address=args.ray_address, progress=True)
+    except ImportError as error:  # --ray without the cluster extra: the message says the fix
+        print(f"egostab sweep: error: {error}", file=sys.stderr)
+        return 2
+    print(result.markdown)
+    for outcome in result.failed:
+        print(f"run failed: {outcome}", file=sys.stderr)
+    print(f"sweep folder: {out_dir}")
+    return 1 if result.failed else 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="egostab", description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = commands.add_parser("run", help="run a walking scenario and score the stabilizers")
+    run.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
+                     help=f"scenario name (see `egostab list`) or TOML path "
+                          f"(default: {DEFAULT_SCENARIO})")
+    run.add_argument("--methods", type=_method_list, default=None,
+                     help="comma-separated methods, or 'all' (default: the scenario's)")
+    run.add_argument("--out", type=Path, default=None,
+                     help="run folder (default: results/<scenario>)")
+    run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    run.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(handler=_cmd_run)
+
+    ideal = commands.add_parser(
+        "ideal", help="the paper's ideal experiment: move one image along a known trajectory")
+    ideal.add_argument("image", help="disparity/depth PNG (8- or 16-bit), .npy depth in metres, "
+                                     "or a scene name to render noise-free (e.g. corridor)")
+    ideal.add_argument("--trajectory", default="paper_cycle",
+                       help="'paper_cycle' (default: one gait cycle of the paper's magnitudes) "
+                            "or a frames.csv of a walking run (its ground truth is replayed)")
+    ideal.add_argument("--frames", type=int, default=30, help="frames per cycle (default 30)")
+    ideal.add_argument("--methods", type=_method_list, default=None,
+                       help="comma-separated methods, or 'all' (default: all)")
+    ideal.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "ideal" / "custom",
+                       help="output folder (default: results/ideal/custom)")
+    ideal.set_defaults(handler=_cmd_ideal)
+
+    aggregate = commands.add_parser("aggregate", help="one table from several run folders")
+    aggregate.add_argument("runs", nargs="+", type=Path, help="run folders with metrics.json")
+    aggregate.add_argument("--out", type=Path, default=None, help="also write the table here")
+    aggregate.set_defaults(handler=_cmd_aggregate)
+
+    listing = commands.add_parser("list", help="list the shipped scenarios")
+    listing.set_defaults(handler=_cmd_list)
+
+    bench = commands.add_parser("bench", help="print the speed figures, measured side by side")
+    bench.add_argument("--quick", action="store_true", help="fewer repetitions")
+    bench.add_argument("--out", type=Path, default=None,
+                       help="also write the figures as Markdown (e.g. results/bench.md)")
+    bench.set_defaults(handler=_cmd_bench)
+
+    gate = commands.add_parser("gate", help="CI regression gate against results/baseline.json")
+    gate.add_argument("--baseline", type=Path, default=DEFAULT_RESULTS / "baseline.json")
+    gate.add_argument("--update-baseline", action="store_true",
+                      help="rewrite the baseline with this run's metrics (on purpose)")
+    gate.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "gate",
+                      help="folder for the gate's runs (default: results/gate)")
+    gate.set_defaults(handler=_cmd_gate)
+
+    sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise x methods")
+    sweep.add_argument("sweep_file", type=Path)
+    sweep.add_argument("--out", type=Path, default=None,
+                       help="sweep folder (default: results/sweeps/<name>; resumable: complete "
+                            "runs are skipped)")
+    sweep.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
+    sweep.add_argument("--ray-address", default=None,
+                       help="Ray address ('auto' = running cluster; default: start a local one)")
+    sweep.set_defaults(handler=_cmd_sweep)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except ValueError as error:  # bad input named by the layer that found it
+        print(f"egostab {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"egostab {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,70 @@
+"""How a run was made: package versions, Python, and the git commit of the harness.
+
+DESIGN.md: "Each run stores its resolved scenario, seed, package versions and git commit beside
+its metrics and in its recording." Versions come from the installed distributions' metadata (no
+heavy imports); the commit from ``git rev-parse HEAD`` when the code lives in a git work tree,
+and is None otherwise (an installed wheel, no git on the machine).
+"""
+
+from __future__ import annotations
+
+import platform
+import subprocess
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+
+#: Reported name -> distributions that provide it (the first installed one is reported).
+PACKAGES = {
+    "numpy": ("numpy",),
+    "opencv": ("opencv-python-headless", "opencv-python", "opencv-contrib-python-headless",
+               "opencv-contrib-python"),
+    "pywt": ("PyWavelets",),
+    "scipy": ("scipy",),
+    "mujoco": ("mujoco",),
+    "dm_control": ("dm-control",),
+    "rerun": ("rerun-sdk",),
+    "matplotlib": ("matplotlib",),
+}
+#: The folder whose git commit identifies the harness (the repository root in a checkout).
+SOURCE_ROOT = Path(__file__).resolve().parents[2]
+
+
+def package_versions() -> dict[str, str | None]:
+    """Reported name -> installed version (None when not installed), plus Python's version."""
+    versions: dict[str, str | None] = {"python": platform.python_version()}
+    for name, distributions in PACKAGES.items():
+        versions[name] = None
+        for distribution in distributions:
+            try:
+                versions[name] = metadata.version(distribution)
+                break
+            except metadata.PackageNotFoundError:
+                continue
+    return versions
+
+
+def _git(*args: str, cwd: Path) -> str | None:
+    try:
+        completed = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True,
+                                   timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return completed.stdout.strip() if completed.returncode == 0 else None
+
+
+@lru_cache(maxsize=4)
+def git_state(root: Path = SOURCE_ROOT) -> dict[str, str | bool | None]:
+    """``{"commit": sha or None, "dirty": bool or None}`` of the work tree at ``root``."""
+    commit = _git("rev-parse", "HEAD", cwd=root)
+    if not commit:
+        return {"commit": None, "dirty": None}
+    status = _git("status", "--porcelain", "--untracked-files=no", cwd=root)
+    return {"commit": commit, "dirty": None if status is None else bool(status)}
+
+
+def provenance() -> dict:
+    """Versions and git state, as stored in metrics.json and in the recording."""
+    state = git_state()
+    return {"versions": package_versions(), "git_commit": state["commit"],
+            "git_dirty": state["dirty"], "platform": platform.platform()}

@@ -1,0 +1,387 @@
+"""A run's outputs: frames.csv, metrics.json, summary.md (the paper's Table I layout), plots.
+
+Every file is written atomically (sim/atomic.py), so a run that ends early (a fall, Ctrl-C)
+leaves complete files; metrics.json is written last and says how the run ended. The same
+Markdown tables serve summary.md, the one-screen terminal summary and ``aggregate_runs``.
+
+Table I of Kang, Zhang & Park (2009) ("Errors in the ideal case") lists, for the rotation, the
+X-axis and the Y-axis displacement, one row per method with the mean and the variance of its
+errors; here the errors are absolute errors against the simulated ground truth, with the
+maximum beside them. Fig. 8/9 of the paper plot the displacements over the frames of a cycle;
+``plot_estimates`` draws the same three stacked axes, estimate against truth.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field, is_dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from sim.harness.atomic import atomic_path, write_text_atomic
+from sim.harness.provenance import provenance
+from sim.harness.scoring import AXES, AXIS_UNITS, RECORD_FIELDS, FrameRecord, MethodScore, RunSummary
+
+FRAMES_CSV = "frames.csv"
+METRICS_JSON = "metrics.json"
+SUMMARY_MD = "summary.md"
+HISTOGRAMS_PNG = "error_histograms.png"
+#: Identifies the layout of metrics.json for readers such as ``aggregate_runs``.
+METRICS_FORMAT = "egostab-metrics/1"
+AXIS_TITLES = {"rotation": "Rotation displacement", "x": "X-axis displacement",
+               "y": "Y-axis displacement"}
+PLOT_DPI = 100
+RECORDING_NOTE = "rerun recording (open: rerun FILE)"
+
+
+@dataclass(frozen=True)
+class RunFiles:
+    """Where a run's outputs are, and (once written) the content of metrics.json."""
+
+    run_dir: Path
+    frames_csv: Path
+    metrics_json: Path
+    summary_md: Path
+    plots: tuple[Path, ...]
+    recording: Path | None = None
+    metrics: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def listing(self) -> list[tuple[str, Path]]:
+        """(what, path) pairs, for summaries."""
+        listing = [("per-frame results", self.frames_csv), ("metrics", self.metrics_json),
+                   ("summary (Table I)", self.summary_md)]
+        if self.recording is not None:
+            listing.append((RECORDING_NOTE, self.recording))
+        return listing + [("plot", path) for path in self.plots]
+
+
+# ----------------------------------------------------------------------------- formatting
+def format_number(value: float | None, digits: int = 2) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return f"{value:.{digits}f}"
+
+
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def table_one(scores: Mapping[str, MethodScore]) -> str:
+    """Table I layout: per displacement, one row per method, mean / variance / max of |error|."""
+    rows = []
+    for axis in AXES:
+        for position, (method, score) in enumerate(scores.items()):
+            stats = score.errors[axis]
+            label = f"{AXIS_TITLES[axis]} ({AXIS_UNITS[axis]})" if position == 0 else ""
+            rows.append((label, method, format_number(stats.mean), format_number(stats.variance),
+                         format_number(stats.max), str(stats.n)))
+    return markdown_table(("Displacement", "Method", "Mean of errors", "Variance", "Max",
+                            "Frames"), rows)
+
+
+def reliability_table(scores: Mapping[str, MethodScore]) -> str:
+    """Failure rate, time per frame and ITF (compensated vs raw) per method."""
+    rows = [(method, f"{format_number(100 * score.failure_rate, 1)}% ({score.n_failed}/"
+                     f"{score.n_frames})",
+             ", ".join(f"{status} {count}" for status, count in score.failures.items()) or "-",
+             str(score.n_truth_failed), format_number(score.ms_mean), format_number(score.ms_median),
+             format_number(score.itf_db), format_number(score.itf_raw_db))
+            for method, score in scores.items()]
+    return markdown_table(("Method", "Failure rate", "Reasons", "Truth failed",
+                            "ms/frame mean", "ms/frame median", "ITF compensated (dB)",
+                            "ITF raw (dB)"), rows)
+
+
+def cycle_table(summary: RunSummary) -> str:
+    """Mean / variance of |error| per gait cycle and method."""
+    rows = []
+    for cycle, scores in summary.cycles.items():
+        for method, score in scores.items():
+            cells = [f"{format_number(score.errors[axis].mean)} / {format_number(score.errors[axis].variance)}"
+                     for axis in AXES]
+            rows.append((str(cycle), method, str(score.n_frames), *cells,
+                         f"{format_number(100 * score.failure_rate, 1)}%", format_number(score.itf_db),
+                         format_number(score.itf_raw_db)))
+    return markdown_table(("Cycle", "Method", "Frames", "Rotation (deg)", "X (px)", "Y (px)",
+                            "Failures", "ITF (dB)", "ITF raw (dB)"), rows)
+
+
+def _scenario_name(scenario: Mapping, run_dir: Path) -> str:
+    return str(scenario.get("name") or run_dir.name)
+
+
+def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, status: str,
+                     files: RunFiles) -> str:
+    """The content of summary.md."""
+    state = provenance()
+    seed = meta.get("seed", scenario.get("seed"))
+    lines = [
+        f"# {_scenario_name(scenario, files.run_dir)}: stabilizer errors against the simulated "
+        "ground truth",
+        "",
+        f"Run status: **{status}**. Frames: {summary.n_frames}. Seed: {seed}. "
+        f"Commit: {state['git_commit'] or 'unknown'}"
+        f"{' (uncommitted changes)' if state['git_dirty'] else ''}.",
+        "",
+        "## Absolute errors (the layout of Table I of Kang, Zhang & Park 2009)",
+        "",
+        "Mean, population variance and maximum of |estimate - truth| over the frames where both "
+        "exist.",
+        "",
+        table_one(summary.run),
+        "",
+        "## Failures, time and inter-frame transformation fidelity",
+        "",
+        "ITF: mean PSNR between consecutive frames compensated toward the same reference, on "
+        "pixels valid in both; the raw column is the uncompensated stream.",
+        "",
+        reliability_table(summary.run),
+        "",
+        "## Per gait cycle (mean / variance of |error|)",
+        "",
+        cycle_table(summary),
+        "",
+        "## Files",
+        "",
+        *(f"- {what}: `{path.name}`" for what, path in files.listing()),
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:
+    """One screen for the end of a run: Table I, failures/time/ITF, where the files are.
+
+    Args:
+        metrics: the content of metrics.json (``RunFiles.metrics`` or ``read_metrics``).
+        run_dir: the run's folder, to list the files in it.
+    """
+    summary = RunSummary.from_dict(metrics["summary"])
+    lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
+             "", reliability_table(summary.run)]
+    if run_dir is not None:
+        listed = metrics.get("files", {})
+        names = [(what, name) for what, name in listed.items() if what != "plots"]
+        names += [("plot", name) for name in listed.get("plots", ())]
+        lines += ["", f"Results in {Path(run_dir)}/:"]
+        lines += [f"  {name:<28} {what}" for what, name in names]
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- files
+def _json_ready(value):
+    """Nested plain types for JSON: NaN/inf -> None, numpy -> Python, Path -> str."""
+    if isinstance(value, Mapping):
+        return {str(key): _json_ready(item) for key, item in value.items()}
+    if is_dataclass(value) and not isinstance(value, type):
+        return _json_ready(asdict(value))
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_json_ready(item) for item in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    return str(value)
+
+
+def frames_csv_text(records: Iterable[FrameRecord]) -> str:
+    """frames.csv: one row per (frame, method), columns ``sim.harness.scoring.RECORD_FIELDS``."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=RECORD_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for record in records:
+        writer.writerow(asdict(record))
+    return buffer.getvalue()
+
+
+def metrics_document(*, scenario: Mapping, summary: RunSummary, meta: Mapping, status: str,
+                     files: RunFiles) -> dict:
+    """The content of metrics.json (JSON-ready)."""
+    return _json_ready({
+        "format": METRICS_FORMAT,
+        "status": status,
+        "seed": meta.get("seed", scenario.get("seed")),
+        "scenario": scenario,
+        "run": meta,
+        "provenance": provenance(),
+        "summary": summary.to_dict(),
+        "files": {what: path.name for what, path in files.listing() if what != "plot"}
+                 | {"plots": [path.name for path in files.plots]},
+    })
+
+
+def safe_name(method: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", method)
+
+
+def save_figure(figure: Figure, path: Path) -> Path:
+    FigureCanvasAgg(figure)
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png", dpi=PLOT_DPI)
+    return path
+
+
+def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> Path:
+    """Fig. 8/9 style: rotation, x and y over time, estimate against truth, for one method.
+
+    The truth's fit residual is shaded around the x and y truth (image motion no rigid model
+    explains); frames without an estimate are marked with red crosses on the truth; dotted
+    lines mark reference-frame changes (the start of each gait cycle by default).
+    """
+    records = [record for record in records if record.method == method]
+    times = np.array([record.time_s for record in records])
+    figure = Figure(figsize=(9, 7), layout="constrained")
+    axes = figure.subplots(3, 1, sharex=True)
+    failed = np.array([record.status != "ok" for record in records], dtype=bool)
+    residual = np.array([record.truth_residual_px for record in records])
+    changes = [record.time_s for previous, record in zip(records, records[1:])
+               if record.reference_index != previous.reference_index]
+    for ax, axis in zip(axes, AXES):
+        truth = np.array([record.truth_of(axis) for record in records])
+        estimate = np.array([record.estimate_of(axis) for record in records])
+        ax.plot(times, truth, color="black", linewidth=1.2, label="ground truth")
+        if axis != "rotation":
+            ax.fill_between(times, truth - residual, truth + residual, color="0.85",
+                            label="truth ± fit residual")
+        ax.plot(times, estimate, color="tab:blue", linewidth=1.0, marker=".", markersize=3,
+                label=method)
+        if failed.any():
+            ax.plot(times[failed], truth[failed], "x", color="tab:red", label="no estimate")
+        for change in changes:
+            ax.axvline(change, color="0.6", linestyle=":", linewidth=0.8)
+        ax.set_ylabel(f"{AXIS_TITLES[axis].split()[0]} ({AXIS_UNITS[axis]})")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize="small")
+    axes[0].set_title(f"{method}: estimated and true displacement of each frame")
+    axes[-1].set_xlabel("simulated time (s)")
+    return save_figure(figure, path)
+
+
+def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
+                          methods: Sequence[str]) -> Path:
+    """Histograms of the absolute errors per axis, one outline per method, shared bins."""
+    figure = Figure(figsize=(12, 4), layout="constrained")
+    axes = figure.subplots(1, 3)
+    for ax, axis in zip(axes, AXES):
+        errors = {method: np.array([r.error_of(axis) for r in records
+                                    if r.method == method and r.scored]) for method in methods}
+        pooled = np.concatenate([values for values in errors.values()] or [np.empty(0)])
+        if pooled.size == 0:
+            ax.text(0.5, 0.5, "no scored frames", ha="center", va="center",
+                    transform=ax.transAxes)
+        else:
+            bins = np.histogram_bin_edges(pooled, bins="auto")
+            for method, values in errors.items():
+                if values.size:
+                    ax.hist(values, bins=bins, histtype="step", linewidth=1.5, label=method)
+            ax.legend(fontsize="small")
+        ax.set_xlabel(f"|error| {AXIS_TITLES[axis].split()[0].lower()} ({AXIS_UNITS[axis]})")
+        ax.set_ylabel("frames")
+        ax.grid(True, alpha=0.3)
+    return save_figure(figure, path)
+
+
+def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
+                      records: Sequence[FrameRecord], summary: RunSummary, meta: Mapping,
+                      status: str, plots: bool = True,
+                      recording: str | Path | None = None) -> RunFiles:
+    """Write frames.csv, the plots, summary.md and (last) metrics.json into ``run_dir``.
+
+    Safe to call repeatedly during a run (each call replaces complete files with complete
+    files); pass ``plots=False`` for cheap checkpoints.
+
+    Args:
+        run_dir: the run's folder (created if missing).
+        scenario: the resolved scenario (JSON-able mapping; ``name`` and ``seed`` are shown).
+        records: every FrameRecord of the run, in frame order.
+        summary: ``sim.harness.scoring.summarize(records, itf)``.
+        meta: facts about the run: ``seed``, methods and their parameters, reference policy,
+            duration, anything worth keeping (stored under "run" in metrics.json).
+        status: how the run ended, e.g. "complete", "interrupted", "fell at 3.2 s".
+        plots: draw the PNG plots (about 0.2 s per method).
+        recording: the run's .rrd (written by ``sim.harness.recording.RunRecorder``), to list it.
+    """
+    if not isinstance(status, str) or not status:
+        raise ValueError(f"status must be a non-empty string such as 'complete'; got {status!r}")
+    run_dir = Path(run_dir)
+    records = list(records)
+    plot_paths = ()
+    if plots:
+        plot_paths = tuple(run_dir / f"estimates_{safe_name(method)}.png"
+                           for method in summary.methods) + (run_dir / HISTOGRAMS_PNG,)
+    files = RunFiles(run_dir, run_dir / FRAMES_CSV, run_dir / METRICS_JSON,
+                     run_dir / SUMMARY_MD, plot_paths,
+                     None if recording is None else Path(recording))
+    write_text_atomic(files.frames_csv, frames_csv_text(records))
+    if plots:
+        for method, path in zip(summary.methods, plot_paths):
+            plot_estimates(path, records, method)
+        plot_error_histograms(plot_paths[-1], records, summary.methods)
+    context = dict(scenario=scenario, summary=summary, meta=meta, status=status, files=files)
+    write_text_atomic(files.summary_md, summary_markdown(**context))
+    document = metrics_document(**context)
+    write_text_atomic(files.metrics_json, json.dumps(document, indent=2, allow_nan=False) + "\n")
+    return replace(files, metrics=document)
+
+
+# ----------------------------------------------------------------------------- several runs
+def read_metrics(run: str | Path) -> dict:
+    """metrics.json of a run folder (or the file itself); ValueError if absent or unreadable."""
+    path = Path(run)
+    if path.is_dir():
+        path = path / METRICS_JSON
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        raise ValueError(f"cannot read run metrics {path}: {error}; expected a run folder "
+                         f"holding {METRICS_JSON} (written by a run)") from error
+    if document.get("format") != METRICS_FORMAT:
+        raise ValueError(f"{path} is not a run's metrics file (format "
+                         f"{document.get('format')!r}, expected {METRICS_FORMAT!r})")
+    return document
+
+
+def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None = None) -> str:
+    """One Markdown table over several runs: a row per run and method, Table I figures.
+
+    A run that scored no frame (it fell at once) still gets a row, with its status. With
+    ``out_path`` the table is also written there (atomically).
+    """
+    runs = [Path(run) for run in run_dirs]
+    if not runs:
+        raise ValueError("no runs to aggregate; give one or more run folders")
+    rows = []
+    for run in runs:
+        document = read_metrics(run)
+        head = (run.name if run.is_dir() else run.parent.name,
+                str((document.get("scenario") or {}).get("name", "")), document["status"])
+        scores = document["summary"]["run"]
+        if not scores:
+            rows.append((*head, "-", "0", *("n/a",) * 6))
+        for method, score in scores.items():
+            cells = [f"{format_number(score['errors'][axis]['mean'])} / "
+                     f"{format_number(score['errors'][axis]['variance'])}" for axis in AXES]
+            failure = score["failure_rate"]
+            rows.append((*head, method, str(score["n_frames"]), *cells,
+                         f"{format_number(None if failure is None else 100 * failure, 1)}%",
+                         format_number(score["ms_mean"]),
+                         f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}"))
+    table = markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
+                             "Rotation mean / var (deg)", "X mean / var (px)",
+                             "Y mean / var (px)", "Failure rate", "ms/frame",
+                             "ITF comp / raw (dB)"), rows)
+    if out_path is not None:
+        write_text_atomic(out_path, table + "\n")
+    return table

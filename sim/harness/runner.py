@@ -1,0 +1,277 @@
+"""Run one walking scenario end to end: simulate, render, estimate, score, write.
+
+``run(RunConfig) -> metrics`` is a pure, picklable entry point: it builds the world, the robot
+and the renderer inside the calling process, so a process pool (spawn), Ray or Dask can run
+many of them (DESIGN.md, "Parallel runs").
+
+One frame of the loop (DESIGN.md, "Data flow of one run"): the robot walks under physics,
+control period by control period, following the scenario's commands; at the SR4000's exposure
+times the sensor renders; the finished Frame is scored against its reference frame (chosen by
+the scenario's reference policy) by the ground truth and by every method; the recorder logs it.
+A fall, an interrupt (Ctrl-C) or an error ends the run cleanly: the files written describe
+every finished frame and say how the run ended.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from stabilizer import Stabilizer, compensate
+from stabilizer.motion import Motion
+
+#: Statuses a run can end with (metrics.json "status").
+COMPLETE, FELL, INTERRUPTED, ERROR = "complete", "fell", "interrupted", "error"
+#: Name of the recording in a run folder.
+RECORDING_RRD = "recording.rrd"
+#: Frames between checkpoints of frames.csv / metrics.json during a run.
+CHECKPOINT_FRAMES = 150
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What to run and where to write it.
+
+    Attributes:
+        scenario: path of a scenario TOML file, or the name of a shipped one (scenarios/).
+        out_dir: run folder; created; files inside are replaced atomically.
+        methods: methods to score; None = the scenario's list.
+        record: write ``recording.rrd`` (rerun) beside the metrics, if the scenario's
+            ``[recording] enabled`` also allows it.
+        max_frames: stop after this many frames (None = the scenario's duration).
+        seed: overrides the scenario's seed when given.
+        overrides: dotted scenario keys -> values applied before validation, for sweeps
+            (for example ``{"sensor.noise_scale": 2.0}``).
+        progress: show a progress bar.
+    """
+
+    scenario: str
+    out_dir: str
+    methods: tuple[str, ...] | None = None
+    record: bool = True
+    max_frames: int | None = None
+    seed: int | None = None
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    progress: bool = False
+
+
+def scenario_name(scenario: str | os.PathLike) -> str:
+    """The run's name for a scenario given by name or path (its file stem)."""
+    return Path(scenario).stem
+
+
+class _ReferenceTracker:
+    """Holds the current reference frame and its analysed Stabilizers, per the policy.
+
+    Policies (DESIGN.md): ``cycle_start`` = the first frame of each gait cycle; ``previous``
+    = the frame before; ``first`` = the run's first frame.
+    """
+
+    def __init__(self, policy: str, methods: tuple[str, ...]):
+        self.policy = policy
+        self.methods = methods
+        self.frame = None
+        self.cycle = None
+        self.stabilizers: dict[str, Stabilizer] = {}
+        self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
+
+    def _needs_new(self, cycle: int) -> bool:
+        return (self.frame is None or self.policy == "previous"
+                or (self.policy == "cycle_start" and cycle != self.cycle))
+
+    def reference_for(self, frame, cycle: int, previous_frame):
+        """The reference of ``frame``; analysed once per reference change."""
+        if self._needs_new(cycle):
+            reference = frame if (self.policy != "previous" or previous_frame is None) \
+                else previous_frame
+            self.frame, self.cycle = reference, cycle
+            self.stabilizers = {}
+            for method in self.methods:
+                start = time.perf_counter()
+                self.stabilizers[method] = Stabilizer(reference.disparity8, method)
+                self.analysis_ms[method].append(1e3 * (time.perf_counter() - start))
+        return self.frame
+
+
+def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0):
+    """Scene ``scene_name`` with the humanoid standing at its start, ready to walk.
+
+    ``gait`` is a GaitParams or a preset name; ``seed`` perturbs the initial joint angles.
+    """
+    from sim.world.scenes import build_scene
+    from sim.world.walking import RobotSimulation
+    from sim.world.assembly import assemble, compile_world
+
+    scene = build_scene(scene_name, scene_seed)
+    model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
+    return RobotSimulation(model, gait=gait, seed=seed)
+
+
+def scenario_robot(scenario):
+    """The robot of a loaded scenario: its scene, gait and seed."""
+    return build_robot(scenario.scene, scenario.scene_seed, scenario.gait.params(),
+                       scenario.seed)
+
+
+def open_sensor(scenario, robot):
+    """The scenario's SR4000 on the robot's head (a context manager: it holds a renderer)."""
+    from sim.world.sensor.sr4000 import SR4000
+
+    return SR4000(robot.model, robot.camera_name, scenario.sensor.tof_params(),
+                  fps=scenario.sensor.fps, seed=scenario.seed)
+
+
+def walk_frames(scenario, robot, sensor, n_frames: int):
+    """Walk the robot under the scenario's commands; yield each SR4000 frame when finished.
+
+    Physics advances control period by control period; the sensor renders at its exposure
+    times (the control step nearest each), so frames come at the sensor's frame rate.
+    """
+    for index in range(n_frames):
+        for exposure_time in sensor.exposure_times(index):
+            walk_until(scenario, robot, exposure_time)
+            sensor.expose(robot.data)
+        yield sensor.read_frame(index)
+
+
+def walk_until(scenario, robot, time_s: float) -> None:
+    """Step the robot under the scenario's commands to the control step nearest ``time_s``."""
+    while robot.time + 0.5 * robot.control_period_s < time_s:
+        command = scenario.command_at(robot.time)
+        robot.command(command.speed, command.yaw_rate)
+        robot.step()
+
+
+def timed_estimate(stabilizer: Stabilizer, current) -> tuple[Motion, float]:
+    """The estimate of ``current`` and the milliseconds it took; an exception becomes a status."""
+    start = time.perf_counter()
+    try:
+        motion = stabilizer.estimate(current)
+    except Exception as error:  # a method's bug must not take the other methods' run down
+        motion = Motion.failed(f"exception:{type(error).__name__}", message=str(error))
+    return motion, 1e3 * (time.perf_counter() - start)
+
+
+def run(config: RunConfig) -> dict:
+    """Run the scenario of ``config``; return the metrics dict also written to metrics.json.
+
+    The run's status is "complete", "fell" (the robot fell: frames up to the fall are
+    scored), "interrupted" (Ctrl-C) or "error" (an exception, re-raised after the files of
+    the finished frames are written).
+    """
+    # Imports here keep `import sim.harness.runner` light for process pools that only pickle configs.
+    from sim.harness.ground_truth import ground_truth
+    from sim.harness.recording import RunRecorder
+    from sim.harness.report import write_run_outputs
+    from sim.harness.scenario import load_scenario
+    from sim.harness.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
+
+    overrides = dict(config.overrides)
+    if config.seed is not None:
+        overrides["seed"] = config.seed
+    scenario = load_scenario(config.scenario, overrides)
+    methods = tuple(config.methods or scenario.evaluation.methods)
+    if config.max_frames is not None and config.max_frames < 1:
+        raise ValueError(f"max_frames must be >= 1 or None; got {config.max_frames}")
+    out_dir = Path(config.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    robot = scenario_robot(scenario)
+    recording_path = out_dir / RECORDING_RRD
+    recording = config.record and scenario.recording.enabled
+    scenario_dict = scenario.to_dict()
+    meta: dict[str, Any] = {
+        "seed": scenario.seed, "methods": list(methods),
+        "reference_policy": scenario.evaluation.reference, "scene": scenario.scene,
+        "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps,
+        "max_frames": config.max_frames,
+    }
+    records: list = []
+    itf = ItfAccumulator()
+    tracker = _ReferenceTracker(scenario.evaluation.reference, methods)
+    n_frames_planned = int(math.floor(scenario.duration_s * scenario.sensor.fps))
+    if config.max_frames is not None:
+        n_frames_planned = min(n_frames_planned, config.max_frames)
+    status, message = COMPLETE, ""
+
+    def write(final: bool) -> dict:
+        meta["frames_done"] = len(records) // max(len(methods), 1)
+        files = write_run_outputs(
+            out_dir, scenario=scenario_dict, records=records,
+            summary=summarize(records, itf), meta=meta,
+            status=status if final else "running", plots=final,
+            recording=recording_path if recording and final else None)
+        return files.metrics
+
+    wall_start = time.perf_counter()
+    recorder = (RunRecorder(recording_path, methods, properties={"scenario": scenario_dict,
+                                                               "seed": scenario.seed},
+                            frame_stride=scenario.recording.frame_stride,
+                            recording_id=f"{scenario.name}-seed{scenario.seed}")
+                if recording else None)
+    progress = _progress_bar(n_frames_planned, scenario.name, config.progress)
+    previous_frame = None
+    try:
+        with open_sensor(scenario, robot) as sensor:
+            for frame in walk_frames(scenario, robot, sensor, n_frames_planned):
+                index, cycle = frame.index, robot.gait_cycle
+                reference = tracker.reference_for(frame, cycle, previous_frame)
+                truth = ground_truth(reference, frame,
+                                     reference_depth_m=reference.true_depth_m,
+                                     current_depth_m=frame.true_depth_m)
+                estimates, compensated = {}, {}
+                for method in methods:
+                    motion, ms = timed_estimate(tracker.stabilizers[method], frame.disparity8)
+                    estimates[method] = motion
+                    compensated[method] = compensate(frame.disparity8, motion)
+                    records.append(FrameRecord.score(
+                        frame_index=index, time_s=frame.time_s, gait_cycle=cycle,
+                        reference_index=reference.index, method=method, estimate=motion,
+                        truth=truth, ms=ms))
+                    itf.add(method, compensated[method], gait_cycle=cycle,
+                            reference_index=reference.index)
+                itf.add(RAW_STREAM, frame.disparity8, gait_cycle=cycle,
+                        reference_index=reference.index)
+                if recorder is not None:
+                    recorder.log_frame(frame, estimates=estimates, truth=truth,
+                                       compensated=compensated,
+                                       robot_position=robot.torso_pose()[0])
+                previous_frame = frame
+                progress.update(1)
+                if robot.fall is not None:
+                    status = FELL
+                    message = f"the robot fell at {robot.fall.time_s:.2f} s ({robot.fall.reason})"
+                    meta["fall"] = {"time_s": robot.fall.time_s, "reason": robot.fall.reason}
+                    break
+                if (index + 1) % CHECKPOINT_FRAMES == 0:
+                    write(final=False)
+    except KeyboardInterrupt:
+        status, message = INTERRUPTED, "interrupted by the user (Ctrl-C)"
+    except Exception as error:
+        status, message = ERROR, f"{type(error).__name__}: {error}"
+        raise
+    finally:
+        progress.close()
+        if recorder is not None:
+            if message:
+                recorder.log_event(message, level="WARN")
+            recorder.close()
+        wall_s = time.perf_counter() - wall_start
+        meta.update({
+            "message": message, "sim_time_s": robot.time, "wall_time_s": wall_s,
+            "realtime_factor": robot.time / wall_s if wall_s > 0 else math.nan,
+            "reference_analysis_ms": {m: (sum(v) / len(v) if v else math.nan)
+                                      for m, v in tracker.analysis_ms.items()},
+        })
+        metrics = write(final=True)
+    return metrics
+
+
+def _progress_bar(total: int, name: str, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=name, unit="frame", disable=not enabled, leave=False)

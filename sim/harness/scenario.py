@@ -1,0 +1,393 @@
+"""Scenario files (TOML): what a walking run does, validated before anything runs.
+
+This module is the one place the keys, their defaults and their allowed values are documented:
+the dataclasses below, one per TOML table. Example::
+
+    name = "corridor_straight"            # default: the file's stem
+    description = "straight walk down the corridor"
+    scene = "corridor"                    # a key of sim.world.scenes.SCENES
+    scene_seed = 0                        # placement of the scene's furniture
+    seed = 0                              # sensor noise and anything else random in the run
+    duration_s = 30.0
+
+    [[commands]]                          # walk commands, in time order, the first at t = 0
+    t = 0.0                               # each holds until the next one
+    speed = 0.0                           # forward speed, m/s (0 = stand / stop)
+    yaw_rate = 0.0                        # turn rate, deg/s, counter-clockwise positive
+    [[commands]]
+    t = 1.0
+    speed = 0.1
+
+    [gait]
+    preset = "default"                    # a key of sim.world.walking.gait.GAIT_PRESETS
+    overrides = { step_height_m = 0.035 } # any GaitParams field
+
+    [sensor]
+    preset = "sr4000"                     # a key of sim.world.sensor.tof_model.TOF_PRESETS
+    fps = 30.0
+    noise_scale = 1.0                     # multiplies the noise sigmas of the preset
+    overrides = { mixed_pixel_weight = 0.3 }  # any ToFParams field
+
+    [evaluation]
+    reference = "cycle_start"             # "cycle_start", "previous" or "first"
+    methods = ["t2fuzzy", "sift"]         # from stabilizer.available_methods()
+
+    [recording]
+    enabled = true
+    frame_stride = 1
+
+Any unknown key, wrong type or out-of-range value raises :class:`ScenarioError` (a ValueError)
+naming the file, the key and what is allowed.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from scenarios import SCENARIOS_DIR
+from sim.world.scenes import SCENES
+from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
+from stabilizer.api import available_methods
+
+REFERENCE_POLICIES = ("cycle_start", "previous", "first")
+#: Longest scenario, seconds.
+MAX_DURATION_S = 3600.0
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot run: names the file, the key and what is allowed."""
+
+    def __init__(self, source: str, key: str, problem: str, allowed: str):
+        self.source, self.key, self.problem, self.allowed = source, key, problem, allowed
+        super().__init__(f"{source}: {key}: {problem}; allowed: {allowed}")
+
+    def __reduce__(self):  # picklable, so a process pool can report it
+        return ScenarioError, (self.source, self.key, self.problem, self.allowed)
+
+
+def _key(default, allowed: str, check=None, doc: str = ""):
+    """A dataclass field with its allowed values (text and check) beside its default."""
+    factory = {"default_factory": default} if callable(default) else {"default": default}
+    return field(**factory, metadata={"allowed": allowed, "check": check, "doc": doc})
+
+
+@dataclass(frozen=True)
+class Command:
+    """From time ``t`` on, walk at ``speed`` m/s turning at ``yaw_rate`` deg/s."""
+
+    t: float = _key(0.0, "a time >= 0 s, increasing from command to command",
+                    lambda v: 0 <= v <= MAX_DURATION_S)
+    speed: float = _key(0.0, "0 to 0.5 m/s (and at most the gait's top speed)",
+                        lambda v: 0 <= v <= 0.5)
+    yaw_rate: float = _key(0.0, "-90 to 90 deg/s (and at most the gait's top turn rate)",
+                           lambda v: -90 <= v <= 90)
+
+
+@dataclass(frozen=True)
+class GaitSpec:
+    """The walking gait: a preset of sim.world.walking.gait.GAIT_PRESETS and field overrides."""
+
+    preset: str = _key("default", "a preset of sim.world.walking.gait.GAIT_PRESETS")
+    overrides: dict = _key(dict, "a table of GaitParams fields -> numbers")
+
+    def params(self):
+        from sim.world.walking.gait import GAIT_PRESETS
+
+        return dataclasses.replace(GAIT_PRESETS[self.preset], **self.overrides)
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """The SR4000 emulation: a ToF preset, field overrides, a noise scale and the frame rate."""
+
+    preset: str = _key("sr4000", f"one of {', '.join(TOF_PRESETS)}",
+                       lambda v: v in TOF_PRESETS)
+    fps: float = _key(30.0, f"0 < fps <= {MAX_FPS:g} (the SR4000's limit)",
+                      lambda v: 0 < v <= MAX_FPS)
+    noise_scale: float = _key(1.0, "0 to 100 (multiplies the preset's noise sigmas)",
+                              lambda v: 0 <= v <= 100)
+    overrides: dict = _key(dict, "a table of ToFParams fields -> values of the field's type")
+
+    def tof_params(self) -> ToFParams:
+        """The ToFParams of this sensor: preset, then noise scale, then overrides."""
+        return dataclasses.replace(self.scaled_preset(), **self.overrides)
+
+    def scaled_preset(self) -> ToFParams:
+        """The preset with its noise sigmas multiplied by ``noise_scale``."""
+        base = TOF_PRESETS[self.preset]
+        return dataclasses.replace(base, **{
+            name: getattr(base, name) * self.noise_scale
+            for name in ("noise_sigma_ref_m", "noise_sigma_min_m", "noise_sigma_max_m")})
+
+
+@dataclass(frozen=True)
+class EvaluationSpec:
+    """What is scored: the reference-frame policy and the methods."""
+
+    reference: str = _key("cycle_start", f"one of {', '.join(REFERENCE_POLICIES)}",
+                          lambda v: v in REFERENCE_POLICIES)
+    methods: tuple = _key(available_methods, f"a non-empty list of distinct names from "
+                          f"{', '.join(available_methods())}",
+                          lambda v: v and len(set(v)) == len(v)
+                          and all(m in available_methods() for m in v))
+
+
+@dataclass(frozen=True)
+class RecordingSpec:
+    """Whether a rerun recording is written, and every how many frames."""
+
+    enabled: bool = _key(True, "true or false")
+    frame_stride: int = _key(1, "an integer 1 to 1000", lambda v: 1 <= v <= 1000)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One walking run, as loaded from a TOML file (see the module docstring for the layout)."""
+
+    name: str = _key("", "a name (default: the file's stem)")
+    description: str = _key("", "free text")
+    scene: str = _key("corridor", f"one of {', '.join(SCENES)}", lambda v: v in SCENES)
+    scene_seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
+    seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
+    duration_s: float = _key(20.0, f"0 < duration_s <= {MAX_DURATION_S:g}",
+                             lambda v: 0 < v <= MAX_DURATION_S)
+    commands: tuple = _key(lambda: (Command(),), "an array of tables [[commands]] with t, "
+                           "speed, yaw_rate; the first at t = 0, times increasing")
+    gait: GaitSpec = _key(GaitSpec, "a table [gait]")
+    sensor: SensorSpec = _key(SensorSpec, "a table [sensor]")
+    evaluation: EvaluationSpec = _key(EvaluationSpec, "a table [evaluation]")
+    recording: RecordingSpec = _key(RecordingSpec, "a table [recording]")
+    source: str = field(default="", compare=False)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-ready dict of the resolved scenario (for metrics.json)."""
+        return _plain(dataclasses.asdict(self))
+
+    def command_at(self, time_s: float) -> Command:
+        """The command in force at ``time_s``."""
+        times = [c.t for c in self.commands]
+        return self.commands[max(0, int(np.searchsorted(times, time_s, side="right")) - 1)]
+
+
+def _plain(value):
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+# -- loading and validation -------------------------------------------------------------------
+
+_SECTIONS = {"gait": GaitSpec, "sensor": SensorSpec, "evaluation": EvaluationSpec,
+             "recording": RecordingSpec}
+
+
+def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Read and validate a scenario file.
+
+    Args:
+        path: the TOML file, or the name of a shipped scenario (``scenarios/<name>.toml``).
+        overrides: dotted keys -> values set before validation, e.g.
+            ``{"sensor.noise_scale": 2.0, "seed": 3}`` (sweeps, command-line overrides).
+
+    Raises:
+        ScenarioError: unknown key, wrong type or out-of-range value (file, key, allowed).
+        FileNotFoundError: no such file or shipped scenario.
+    """
+    path = resolve_scenario_path(path)
+    source = str(path)
+    try:
+        with open(path, "rb") as handle:
+            raw = tomllib.load(handle)
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioError(source, "(file)", f"not valid TOML ({error})", "TOML 1.0") from None
+    for dotted, value in (overrides or {}).items():
+        _set_dotted(raw, dotted, value, source)
+    raw.setdefault("name", path.stem)
+    return scenario_from_dict(raw, source)
+
+
+def scenario_from_dict(raw: Mapping[str, Any], source: str = "<dict>") -> Scenario:
+    """Validate a scenario given as a (TOML-like) dict; ``source`` names it in errors."""
+    values = _check_table(Scenario, raw, "", source, nested=("commands", *_SECTIONS))
+    for section, cls in _SECTIONS.items():
+        table = raw.get(section, {})
+        if not isinstance(table, Mapping):
+            raise ScenarioError(source, section, f"must be a table, got {table!r}",
+                                f"a table [{section}]")
+        values[section] = cls(**_check_table(cls, table, f"{section}.", source,
+                                             nested=("overrides",), raw_keys=("overrides",)))
+    values["commands"] = _check_commands(raw.get("commands"), values.get("duration_s", 20.0),
+                                         source)
+    scenario = Scenario(**values, source=source)
+    _check_gait(scenario, source)
+    _check_sensor(scenario, source)
+    return scenario
+
+
+def _check_table(cls, table: Mapping, prefix: str, source: str, nested=(), raw_keys=()):
+    """Check keys, types and ranges of one table against the fields of ``cls``."""
+    specs = {f.name: f for f in dataclasses.fields(cls) if f.name != "source"}
+    hints = typing.get_type_hints(cls)
+    for key in table:
+        if key not in specs:
+            raise ScenarioError(source, prefix + str(key), "unknown key",
+                                f"keys {', '.join(specs)}")
+    values = {}
+    for name, spec in specs.items():
+        if name not in table or (name in nested and name not in raw_keys):
+            continue
+        value = table[name]
+        if name in raw_keys:
+            if not isinstance(value, Mapping):
+                raise ScenarioError(source, prefix + name, f"must be a table, got {value!r}",
+                                    spec.metadata["allowed"])
+            values[name] = dict(value)
+            continue
+        value = _coerce(value, hints[name], source, prefix + name, spec.metadata["allowed"])
+        check = spec.metadata["check"]
+        if check is not None and not check(value):
+            raise ScenarioError(source, prefix + name, f"{value!r} is out of range",
+                                spec.metadata["allowed"])
+        values[name] = value
+    return values
+
+
+def _coerce(value, kind, source, key, allowed):
+    """``value`` as ``kind`` (bool, int, float, str, tuple of str) or a ScenarioError."""
+    ok = {
+        bool: isinstance(value, bool),
+        int: isinstance(value, int) and not isinstance(value, bool),
+        float: isinstance(value, (int, float)) and not isinstance(value, bool)
+        and math.isfinite(value),
+        str: isinstance(value, str),
+        tuple: isinstance(value, list) and all(isinstance(v, str) for v in value),
+    }[kind]
+    if not ok:
+        expected = {tuple: "a list of strings"}.get(kind, f"a {kind.__name__}")
+        raise ScenarioError(source, key, f"wrong type: {value!r} is not {expected}", allowed)
+    return tuple(value) if kind is tuple else kind(value)
+
+
+def _check_commands(raw_commands, duration_s, source) -> tuple[Command, ...]:
+    if raw_commands is None:
+        return (Command(),)
+    allowed = Scenario.__dataclass_fields__["commands"].metadata["allowed"]
+    if not isinstance(raw_commands, list) or not raw_commands:
+        raise ScenarioError(source, "commands", f"got {raw_commands!r}", allowed)
+    commands = []
+    for i, table in enumerate(raw_commands):
+        if not isinstance(table, Mapping):
+            raise ScenarioError(source, f"commands[{i}]", f"got {table!r}", allowed)
+        commands.append(Command(**_check_table(Command, table, f"commands[{i}].", source)))
+    times = [c.t for c in commands]
+    if times[0] != 0.0:
+        raise ScenarioError(source, "commands[0].t", f"{times[0]!r}: the first must be at 0",
+                            allowed)
+    for i in range(1, len(times)):
+        if not times[i - 1] < times[i] < duration_s:
+            raise ScenarioError(source, f"commands[{i}].t", f"{times[i]!r} does not increase "
+                                f"or is not before duration_s={duration_s}", allowed)
+    return tuple(commands)
+
+
+def _check_gait(scenario: Scenario, source: str) -> None:
+    from sim.world.walking.gait import GAIT_PRESETS, GaitParams
+
+    gait = scenario.gait
+    if gait.preset not in GAIT_PRESETS:
+        raise ScenarioError(source, "gait.preset", f"unknown preset {gait.preset!r}",
+                            f"one of {', '.join(GAIT_PRESETS)}")
+    params = _replace_checked(GaitParams, GAIT_PRESETS[gait.preset], gait.overrides,
+                              "gait.overrides", source)
+    for i, command in enumerate(scenario.commands):
+        if command.speed > params.max_forward_speed_mps + 1e-9:
+            raise ScenarioError(source, f"commands[{i}].speed", f"{command.speed} m/s is faster "
+                                f"than the gait walks", f"0 to {params.max_forward_speed_mps:.3f}"
+                                " m/s for this gait (step_length_max_m / step_period_s)")
+        if abs(command.yaw_rate) > params.max_yaw_rate_dps + 1e-9:
+            raise ScenarioError(source, f"commands[{i}].yaw_rate", f"{command.yaw_rate} deg/s "
+                                "turns faster than the gait", f"at most +-"
+                                f"{params.max_yaw_rate_dps:.1f} deg/s for this gait")
+
+
+def _check_sensor(scenario: Scenario, source: str) -> None:
+    sensor = scenario.sensor
+    params = _replace_checked(ToFParams, sensor.scaled_preset(), sensor.overrides,
+                              "sensor.overrides", source)
+    if params.integration_time_s >= 1.0 / sensor.fps:
+        raise ScenarioError(source, "sensor.fps", f"{sensor.fps} frames/s leaves less than the "
+                            f"integration time {params.integration_time_s} s per frame",
+                            f"fps < {1.0 / params.integration_time_s:.1f}")
+
+
+def _replace_checked(cls, base, overrides: Mapping, key: str, source: str):
+    """``dataclasses.replace(base, **overrides)`` with field names and types checked."""
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    for name, value in overrides.items():
+        if name not in names:
+            raise ScenarioError(source, f"{key}.{name}", "unknown field",
+                                f"fields of {cls.__name__}: {', '.join(names)}")
+        _coerce(value, hints[name], source, f"{key}.{name}", f"a {hints[name].__name__}")
+    try:
+        return dataclasses.replace(base, **overrides)
+    except ValueError as error:
+        raise ScenarioError(source, key, str(error), f"valid {cls.__name__} values") from None
+
+
+def _set_dotted(raw: dict, dotted: str, value, source: str) -> None:
+    *tables, last = dotted.split(".")
+    node = raw
+    for name in tables:
+        node = node.setdefault(name, {})
+        if not isinstance(node, dict):
+            raise ScenarioError(source, dotted, "override goes through a non-table",
+                                "dotted keys of tables, e.g. sensor.noise_scale")
+    node[last] = copy.deepcopy(value)
+
+
+def resolve_scenario_path(name_or_path: str | Path) -> Path:
+    """A scenario file from a path, or from the name of a shipped one."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise FileNotFoundError(f"no scenario file {path}")
+        return path
+    shipped = SCENARIOS_DIR / f"{name_or_path}.toml"
+    if not shipped.is_file():
+        names = ", ".join(p.stem for p in list_scenarios())
+        raise FileNotFoundError(f"no scenario {name_or_path!r}; shipped: {names}")
+    return shipped
+
+
+def list_scenarios() -> list[Path]:
+    """The shipped scenario files, sorted by name."""
+    return sorted(SCENARIOS_DIR.glob("*.toml"))
+
+
+def commanded_trajectory(scenario: Scenario, start_xy, start_yaw_deg: float,
+                         dt: float = 0.02) -> np.ndarray:
+    """(N, 2) floor positions of an ideal walker following the commands (unicycle model).
+
+    Used to check that a scenario's commands keep to its scene's path.
+    """
+    xy = np.array(start_xy, dtype=float)
+    yaw = math.radians(start_yaw_deg)
+    points = [xy.copy()]
+    for t in np.arange(0.0, scenario.duration_s, dt):
+        command = scenario.command_at(t)
+        xy += command.speed * dt * np.array([math.cos(yaw), math.sin(yaw)])
+        yaw += math.radians(command.yaw_rate) * dt
+        points.append(xy.copy())
+    return np.array(points)

@@ -1,0 +1,339 @@
+"""Scores of stabilizers against the ground truth: per frame, per gait cycle, per run.
+
+DESIGN.md, "Scoring": for each method and each of rotation (deg), x (px) and y (px), the mean,
+variance and maximum of the absolute error (the paper's Table I reports mean and variance of
+the errors "for one cycle"); the failure rate (frames with no estimate); time per frame; and the
+inter-frame transformation fidelity (ITF), the mean PSNR between consecutive compensated frames,
+beside the raw stream's ITF.
+
+Frames whose ground truth failed are excluded from the error statistics and counted apart.
+Variances are population variances (ddof = 0) of the absolute errors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import Counter, defaultdict
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+from sim.harness.ground_truth import GroundTruth
+from stabilizer.motion import OK, Motion, wrap_angle_deg
+
+#: The three displacements of Table I and their units.
+AXES = ("rotation", "x", "y")
+AXIS_UNITS = {"rotation": "deg", "x": "px", "y": "px"}
+#: Name of the uncompensated stream in the ITF accumulator.
+RAW_STREAM = "raw"
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    """One (frame, method) result: estimate, truth, absolute errors, status and time.
+
+    Errors are NaN unless both the estimate and the ground truth succeeded. The rotation error
+    is wrapped into (-180, 180] before its absolute value is taken.
+    """
+
+    frame_index: int
+    time_s: float
+    gait_cycle: int
+    reference_index: int
+    method: str
+    status: str
+    ms: float
+    est_angle_deg: float
+    est_dx_px: float
+    est_dy_px: float
+    true_angle_deg: float
+    true_dx_px: float
+    true_dy_px: float
+    truth_status: str
+    truth_residual_px: float
+    truth_points: int
+    err_angle_deg: float
+    err_dx_px: float
+    err_dy_px: float
+
+    @classmethod
+    def score(cls, *, frame_index: int, time_s: float, gait_cycle: int, reference_index: int,
+              method: str, estimate: Motion, truth: GroundTruth, ms: float) -> "FrameRecord":
+        """Compare ``estimate`` with ``truth`` for one frame and method."""
+        errors = (math.nan,) * 3
+        if estimate.ok and truth.ok:
+            errors = (abs(float(wrap_angle_deg(estimate.angle_deg - truth.motion.angle_deg))),
+                      abs(estimate.dx - truth.motion.dx), abs(estimate.dy - truth.motion.dy))
+        return cls(int(frame_index), float(time_s), int(gait_cycle), int(reference_index),
+                   str(method), estimate.status, float(ms),
+                   *(float(value) for value in estimate.as_tuple()),
+                   *(float(value) for value in truth.motion.as_tuple()),
+                   truth.motion.status, float(truth.residual_rms_px), int(truth.n_points),
+                   *(float(value) for value in errors))
+
+    @property
+    def scored(self) -> bool:
+        """True when both the estimate and the truth exist, so the errors are numbers."""
+        return self.status == OK and self.truth_status == OK
+
+    def estimate_of(self, axis: str) -> float:
+        return getattr(self, _ESTIMATE_FIELDS[axis])
+
+    def truth_of(self, axis: str) -> float:
+        return getattr(self, _TRUTH_FIELDS[axis])
+
+    def error_of(self, axis: str) -> float:
+        return getattr(self, _ERROR_FIELDS[axis])
+
+
+_ESTIMATE_FIELDS = dict(zip(AXES, ("est_angle_deg", "est_dx_px", "est_dy_px")))
+_TRUTH_FIELDS = dict(zip(AXES, ("true_angle_deg", "true_dx_px", "true_dy_px")))
+_ERROR_FIELDS = dict(zip(AXES, ("err_angle_deg", "err_dx_px", "err_dy_px")))
+#: Column order of frames.csv.
+RECORD_FIELDS = tuple(f.name for f in dataclasses.fields(FrameRecord))
+
+
+def _float(value: float | None) -> float:
+    """A float from JSON, where NaN was written as null."""
+    return math.nan if value is None else float(value)
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Mean, population variance and maximum of absolute errors over ``n`` scored frames."""
+
+    mean: float
+    variance: float
+    max: float
+    n: int
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "ErrorStats":
+        return cls(_float(data["mean"]), _float(data["variance"]), _float(data["max"]),
+                   int(data["n"]))
+
+    @classmethod
+    def of(cls, errors: Iterable[float]) -> "ErrorStats":
+        values = np.asarray(list(errors), dtype=np.float64)
+        if values.size == 0:
+            return cls(math.nan, math.nan, math.nan, 0)
+        return cls(float(values.mean()), float(values.var()), float(values.max()), values.size)
+
+
+@dataclass(frozen=True)
+class MethodScore:
+    """Aggregate scores of one method over a set of frames (a gait cycle or a whole run).
+
+    Attributes:
+        n_frames: frames the method was run on.
+        n_failed: frames with no estimate (status other than "ok").
+        n_truth_failed: frames whose ground truth failed (excluded from the errors).
+        n_scored: frames with both an estimate and a truth.
+        failure_rate: ``n_failed / n_frames``.
+        errors: axis -> ErrorStats of the absolute errors.
+        ms_mean, ms_median: estimation time per frame, milliseconds.
+        itf_db, itf_raw_db: mean PSNR of consecutive compensated / raw frames (NaN if unknown).
+        failures: status -> count of the failed frames.
+    """
+
+    method: str
+    n_frames: int
+    n_failed: int
+    n_truth_failed: int
+    n_scored: int
+    failure_rate: float
+    errors: dict[str, ErrorStats]
+    ms_mean: float
+    ms_median: float
+    itf_db: float = math.nan
+    itf_raw_db: float = math.nan
+    failures: dict[str, int] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "MethodScore":
+        """Inverse of ``dataclasses.asdict`` after a JSON round trip (None -> NaN)."""
+        values = dict(data)
+        values["errors"] = {axis: ErrorStats.from_dict(values["errors"][axis]) for axis in AXES}
+        for name in ("failure_rate", "ms_mean", "ms_median", "itf_db", "itf_raw_db"):
+            values[name] = _float(values[name])
+        return cls(**values)
+
+    @classmethod
+    def of(cls, method: str, records: list[FrameRecord], itf_db: float = math.nan,
+           itf_raw_db: float = math.nan) -> "MethodScore":
+        scored = [record for record in records if record.scored]
+        failed = Counter(record.status for record in records if record.status != OK)
+        times = np.asarray([record.ms for record in records], dtype=np.float64)
+        return cls(
+            method=method, n_frames=len(records), n_failed=sum(failed.values()),
+            n_truth_failed=sum(record.truth_status != OK for record in records),
+            n_scored=len(scored),
+            failure_rate=sum(failed.values()) / len(records) if records else math.nan,
+            errors={axis: ErrorStats.of(r.error_of(axis) for r in scored) for axis in AXES},
+            ms_mean=float(times.mean()) if times.size else math.nan,
+            ms_median=float(np.median(times)) if times.size else math.nan,
+            itf_db=itf_db, itf_raw_db=itf_raw_db, failures=dict(sorted(failed.items())),
+        )
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """Scores of every method over the whole run and over each gait cycle.
+
+    Attributes:
+        methods: method names in the order they first appear in the records.
+        run: method -> MethodScore over all frames.
+        cycles: gait cycle -> method -> MethodScore over that cycle's frames.
+        n_frames: number of distinct frames scored.
+    """
+
+    methods: tuple[str, ...]
+    run: dict[str, MethodScore]
+    cycles: dict[int, dict[str, MethodScore]]
+    n_frames: int
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "RunSummary":
+        """Inverse of ``to_dict``, also after a JSON round trip (metrics.json's "summary")."""
+        return cls(tuple(data["methods"]),
+                   {m: MethodScore.from_dict(s) for m, s in data["run"].items()},
+                   {int(cycle): {m: MethodScore.from_dict(s) for m, s in scores.items()}
+                    for cycle, scores in data["cycles"].items()},
+                   int(data["n_frames"]))
+
+    def to_dict(self) -> dict:
+        """Plain nested dicts and lists (NaN kept as float NaN), ready for JSON."""
+        return {"methods": list(self.methods), "n_frames": self.n_frames,
+                "run": {m: dataclasses.asdict(s) for m, s in self.run.items()},
+                "cycles": {str(cycle): {m: dataclasses.asdict(s) for m, s in scores.items()}
+                           for cycle, scores in self.cycles.items()}}
+
+
+def summarize(records: Iterable[FrameRecord], itf: "ItfAccumulator | None" = None) -> RunSummary:
+    """Aggregate per-frame records per run and per gait cycle, for every method."""
+    records = list(records)
+    by_method: dict[str, list[FrameRecord]] = defaultdict(list)
+    by_cycle: dict[int, dict[str, list[FrameRecord]]] = defaultdict(lambda: defaultdict(list))
+    for record in records:
+        by_method[record.method].append(record)
+        by_cycle[record.gait_cycle][record.method].append(record)
+
+    def itf_of(stream: str, cycle: int | None) -> float:
+        return itf.mean_db(stream, cycle) if itf is not None else math.nan
+
+    run = {method: MethodScore.of(method, group, itf_of(method, None), itf_of(RAW_STREAM, None))
+           for method, group in by_method.items()}
+    cycles = {cycle: {method: MethodScore.of(method, group, itf_of(method, cycle),
+                                             itf_of(RAW_STREAM, cycle))
+                      for method, group in groups.items()}
+              for cycle, groups in sorted(by_cycle.items())}
+    return RunSummary(tuple(by_method), run, cycles,
+                      len({record.frame_index for record in records}))
+
+
+def masked_psnr_db(first: np.ndarray, second: np.ndarray, peak: float = 255.0,
+                   cap_db: float = 100.0) -> float:
+    """PSNR (dB) of two images on the pixels valid (non-zero) in both; NaN if none are.
+
+    Identical images have an infinite PSNR; it is capped at ``cap_db`` so means stay finite.
+    """
+    if first.shape != second.shape or first.dtype != second.dtype:
+        raise ValueError(f"images must have the same shape and dtype; got {first.shape} "
+                         f"{first.dtype} and {second.shape} {second.dtype}")
+    both = ((first != 0) & (second != 0)).view(np.uint8)
+    count = cv2.countNonZero(both)
+    if count == 0:
+        return math.nan
+    mse = cv2.norm(first, second, cv2.NORM_L2SQR, mask=both) / count
+    if mse == 0.0:
+        return cap_db
+    return min(cap_db, 10.0 * math.log10(peak * peak / mse))
+
+
+class ItfAccumulator:
+    """Incremental inter-frame transformation fidelity: mean PSNR of consecutive frames.
+
+    Feed each stream (a method's compensated frames, and the raw frames as ``RAW_STREAM``) one
+    frame at a time in frame order. A pair counts only when both frames were compensated
+    toward the same reference frame: across a reference change the two frames are aligned to
+    different images by design (so with the previous-frame reference policy no pair counts
+    and the ITF is NaN). A pair belongs to the gait cycle of its second frame.
+
+    Args:
+        peak: largest pixel value (255 for the uint8 disparity-like images).
+        cap_db: PSNR given to identical pairs (their PSNR is infinite).
+    """
+
+    def __init__(self, peak: float = 255.0, cap_db: float = 100.0):
+        if peak <= 0 or cap_db <= 0:
+            raise ValueError(f"peak and cap_db must be positive; got {peak} and {cap_db}")
+        self.peak = peak
+        self.cap_db = cap_db
+        self._previous: dict[str, tuple[int, np.ndarray]] = {}
+        self._pairs: dict[str, list[tuple[int, float]]] = defaultdict(list)
+
+    def add(self, stream: str, image: np.ndarray, *, gait_cycle: int,
+            reference_index: int) -> float:
+        """Add the next frame of ``stream``; returns the PSNR of the pair it closes (or NaN)."""
+        image = np.asarray(image)
+        if image.ndim != 2:
+            raise ValueError(f"ITF frames must be 2-D images; got shape {image.shape}")
+        previous = self._previous.get(stream)
+        self._previous[stream] = (reference_index, image.copy())
+        if previous is None or previous[0] != reference_index:
+            return math.nan
+        psnr = masked_psnr_db(previous[1], image, self.peak, self.cap_db)
+        if not math.isnan(psnr):
+            self._pairs[stream].append((int(gait_cycle), psnr))
+        return psnr
+
+    def mean_db(self, stream: str, gait_cycle: int | None = None) -> float:
+        """Mean PSNR of the stream's pairs (of one gait cycle, or all); NaN if it has none."""
+        values = [psnr for cycle, psnr in self._pairs.get(stream, ())
+                  if gait_cycle is None or cycle == gait_cycle]
+        return float(np.mean(values)) if values else math.nan
+
+    def n_pairs(self, stream: str) -> int:
+        return len(self._pairs.get(stream, ()))
+
+    def streams(self) -> tuple[str, ...]:
+        return tuple(self._previous)
+
+
+
+def benchmark(n_frames: int = 1000, methods: tuple[str, ...] = ("t2fuzzy", "sift", "icp", "ecc",
+                                                               "fourier_mellin")) -> float:
+    """Milliseconds of scoring per frame (every method): records, ITF updates, the summary.
+
+    Prints and returns the figure; the compensation warps themselves (the runner's
+    ``stabilizer.compensate`` calls) are not included.
+    """
+    import time
+
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 256, (8, 144, 176), dtype=np.uint8)
+    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
+    estimate = Motion(1.1, 2.2, 2.9)
+    itf = ItfAccumulator()
+    records = []
+    started = time.perf_counter()
+    for index in range(n_frames):
+        cycle, reference = index // 30, 30 * (index // 30)
+        itf.add(RAW_STREAM, images[index % 8], gait_cycle=cycle, reference_index=reference)
+        for method in methods:
+            records.append(FrameRecord.score(
+                frame_index=index, time_s=index / 30, gait_cycle=cycle,
+                reference_index=reference, method=method, estimate=estimate, truth=truth, ms=2.0))
+            itf.add(method, images[(index + 1) % 8], gait_cycle=cycle, reference_index=reference)
+    summarize(records, itf)
+    ms = 1e3 * (time.perf_counter() - started) / n_frames
+    print(f"scoring: {ms:.3f} ms/frame ({len(methods)} methods, {n_frames} frames, 176 x 144)")
+    return ms
+
+
+if __name__ == "__main__":
+    benchmark()

@@ -1,0 +1,211 @@
+"""The walking controller: commands + IMU -> position-servo targets at a fixed control rate.
+
+Per control period (HUMANOID.md, "the standard recipe"):
+1. the footstep planner extends the plan and gives the ZMP reference over the preview horizon;
+2. ZMP preview control (Kajita 2003) gives the centre-of-mass position;
+3. the torso is placed so the whole robot's CoM (computed by MuJoCo's kinematics for the last
+   targets, arms and upper-body sway included) lands on that position;
+4. analytic leg IK puts the feet on their planned poses;
+5. IMU feedback: the torso's tilt and angular rate correct the ankles (OP3/Darwin
+   walking-module style) and its heading error steers the next footsteps;
+6. the waist, neck and arms follow the step phase (upper-body sway, head nod, arm swing).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from sim.world.humanoid import LEG_JOINTS, MODEL_NAME, SIDES
+from sim.world.walking.footsteps import SIDE_SIGN, FootstepPlanner, Pose2D
+from sim.world.walking.gait import GaitParams
+from sim.world.walking.leg_ik import LegIK, rot_y, rot_z
+from sim.world.walking.preview import ZmpPreviewController
+from sim.world.assembly import free_joint_qpos_address
+
+#: Arms' rest pose: slightly out from the body, elbows bent (radians).
+ARM_REST = {"shoulder_roll": 0.15, "elbow": -0.4}
+
+
+class WalkingController:
+    """Computes the 24 servo targets of the humanoid in a compiled world.
+
+    Args:
+        model: a world built by sim.world.assembly.assemble.
+        gait: gait parameters.
+        control_period_s: period of the control loop (a multiple of the physics timestep).
+        preview_s: ZMP preview horizon.
+        heading_gain: fraction of the heading error (commanded heading, the integral of the
+            yaw-rate commands, minus the torso's measured heading) turned back per step; it
+            corrects the slow yaw drift of the feet slipping on the floor.
+        max_heading_correction_deg: limit of that correction per step.
+    """
+
+    def __init__(self, model: mujoco.MjModel, gait: GaitParams, control_period_s: float,
+                 preview_s: float = 1.6, heading_gain: float = 0.3,
+                 max_heading_correction_deg: float = 4.0):
+        self.model = model
+        self.gait = gait
+        self.control_period_s = control_period_s
+        self._scratch = mujoco.MjData(model)          # kinematics of the targets, never stepped
+        self._free_qpos = free_joint_qpos_address(model)
+        self._torso_id = model.body(f"{MODEL_NAME}/torso").id
+        self._gyro_adr = model.sensor_adr[model.sensor(f"{MODEL_NAME}/imu_gyro").id]
+        self._actuator = {name: model.actuator(f"{MODEL_NAME}/{name}").id
+                          for name in self._joint_names()}
+        self._joint_qpos = {name: model.jnt_qposadr[model.joint(f"{MODEL_NAME}/{name}").id]
+                            for name in self._joint_names()}
+        self._leg_actuators = [np.array([self._actuator[f"{s}_{j}"] for j in LEG_JOINTS])
+                               for s in SIDES]
+        self._upper_body_actuators = np.array([self._actuator[name] for name in (
+            "waist_roll", "waist_yaw", "neck_tilt", "neck_pan",
+            "l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow",
+            "r_shoulder_pitch", "r_shoulder_roll", "r_shoulder_yaw", "r_elbow")])
+        self._upper_body_amplitudes = tuple(math.radians(a) for a in (
+            gait.waist_roll_amp_deg, gait.waist_yaw_amp_deg, gait.head_nod_amp_deg,
+            gait.arm_swing_deg))
+        # Actuator order -> qpos address, to write the targets into the scratch state at once.
+        self._actuator_qpos = np.empty(model.nu, dtype=int)
+        for name, act in self._actuator.items():
+            self._actuator_qpos[act] = self._joint_qpos[name]
+        # Leg geometry read from the model: hip joint offsets, segment lengths, ankle height.
+        self._hip_offsets = np.array([model.body_pos[model.body(f"{MODEL_NAME}/{s}_thigh").id]
+                                      for s in SIDES])
+        thigh = -model.body_pos[model.body(f"{MODEL_NAME}/l_shank").id][2]
+        shank = -model.body_pos[model.body(f"{MODEL_NAME}/l_foot").id][2]
+        self._ankle_height = -model.site_pos[model.site(f"{MODEL_NAME}/l_sole").id][2]
+        self._ik = LegIK(thigh, shank)
+        self._preview = ZmpPreviewController(gait.com_height_m, control_period_s, preview_s)
+        self._preview_times = control_period_s * np.arange(1, self._preview.horizon + 1)
+        self._lean = math.radians(gait.torso_lean_deg)
+        self._lean_rot = rot_y(self._lean)
+        self._heading_gain = heading_gain
+        self._max_heading_correction = math.radians(max_heading_correction_deg)
+        self._yaw_rate = 0.0
+        self.targets = np.zeros(model.nu)
+        self.planner: FootstepPlanner | None = None
+
+    @staticmethod
+    def _joint_names() -> list[str]:
+        legs = [f"{s}_{j}" for s in SIDES for j in LEG_JOINTS]
+        arms = [f"{s}_{j}" for s in SIDES
+                for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow")]
+        return legs + ["waist_yaw", "waist_roll", "neck_pan", "neck_tilt"] + arms
+
+    # -- setup ----------------------------------------------------------------------------
+    def reset(self, start: Pose2D) -> tuple[np.ndarray, np.ndarray]:
+        """Plan standing at ``start`` (the point between the feet); returns the standing
+        torso pose (position (3,), quaternion (4,)) and leaves the standing targets."""
+        g = self.gait
+        self.planner = FootstepPlanner(start, g.step_period_s, g.double_support_ratio,
+                                       g.step_width_m, g.step_height_m, g.lateral_sway_m)
+        self._preview.reset(start.xy)
+        self._heading_goal = start.yaw
+        self._yaw_rate = 0.0
+        self._com_offset = np.zeros(3)
+        self._torso_height = g.com_height_m
+        # Fixed point: the torso offset from the CoM depends on the pose it produces.
+        for _ in range(4):
+            self._set_targets(0.0, np.zeros(3))
+            self._update_com_offset()
+            self._torso_height = g.com_height_m + self._com_offset[2]
+        self._set_targets(0.0, np.zeros(3))
+        self._update_com_offset()
+        return self._torso_pos.copy(), self._torso_quat.copy()
+
+    def standing_qpos(self) -> dict[str, float]:
+        """Joint angles of the current targets, by joint name (for initial placement)."""
+        return {name: float(self.targets[act]) for name, act in self._actuator.items()}
+
+    @property
+    def joint_qpos_address(self) -> dict[str, int]:
+        return self._joint_qpos
+
+    # -- control --------------------------------------------------------------------------
+    def command(self, forward_speed_mps: float, yaw_rate_dps: float, now_s: float) -> None:
+        """Walk at a forward speed and yaw rate, clipped to the gait's limits; (0, 0) stops."""
+        g = self.gait
+        v = _clip(float(forward_speed_mps), g.max_forward_speed_mps)
+        w = _clip(float(yaw_rate_dps), g.max_yaw_rate_dps)
+        self._yaw_rate = math.radians(w)
+        self.planner.set_command(v * g.step_period_s, self._yaw_rate * g.step_period_s, now_s)
+
+    def update(self, now_s: float, data: mujoco.MjData) -> np.ndarray:
+        """Targets for the control period starting at ``now_s``; written into ``data.ctrl``."""
+        gyro = data.sensordata[self._gyro_adr:self._gyro_adr + 3]
+        self._heading_goal += self._yaw_rate * self.control_period_s
+        torso_mat = data.xmat[self._torso_id]
+        heading_error = math.remainder(
+            self._heading_goal - math.atan2(torso_mat[3], torso_mat[0]), 2.0 * math.pi)
+        self.planner.turn_correction_rad = _clip(self._heading_gain * heading_error,
+                                                 self._max_heading_correction)
+        self.planner.update(now_s, self._preview_times[-1])
+        reference = self.planner.zmp_reference(now_s + self._preview_times)
+        self._preview.step(reference)
+        roll, pitch = math.atan2(torso_mat[7], torso_mat[8]), -math.asin(torso_mat[6])
+        self._set_targets(now_s + self.control_period_s, gyro, (roll, pitch - self._lean))
+        self._update_com_offset()
+        data.ctrl[:] = self.targets
+        return self.targets
+
+    def _step_phase(self) -> tuple[float, float]:
+        """(side sign of the support foot, sin(pi * progress of the step)); (0, 0) standing."""
+        step = self.planner.current_step
+        if step is None:
+            return 0.0, 0.0
+        progress = (self._now - step.start_s) / (step.end_s - step.start_s)
+        return SIDE_SIGN[step.support_side], math.sin(math.pi * min(1.0, max(0.0, progress)))
+
+    def _set_targets(self, now_s: float, gyro: np.ndarray, tilt=(0.0, 0.0)) -> None:
+        g = self.gait
+        self._now = now_s
+        feet, lifts = self.planner.feet_now(now_s)
+        yaw = feet[1].yaw + math.remainder(feet[0].yaw - feet[1].yaw, 2 * math.pi) / 2.0
+        body_rot = rot_z(yaw) @ self._lean_rot
+        com_xy = self._preview.state[0]
+        torso_pos = np.array([com_xy[0] + self._com_offset[0], com_xy[1] + self._com_offset[1],
+                              self._torso_height])
+        ankle_roll_fb = g.gyro_ankle_roll_gain * float(gyro[0]) + g.tilt_ankle_gain * tilt[0]
+        ankle_pitch_fb = g.gyro_ankle_pitch_gain * float(gyro[1]) + g.tilt_ankle_gain * tilt[1]
+        t = self.targets
+        hips = torso_pos + self._hip_offsets @ body_rot.T
+        for side, (foot, lift, hip) in enumerate(zip(feet, lifts, hips)):
+            ankle = np.array([foot.x, foot.y, self._ankle_height + lift])
+            hip_yaw, hip_roll, hip_pitch, knee, ankle_pitch, ankle_roll = self._ik.solve(
+                hip, body_rot, ankle, rot_z(foot.yaw))
+            t[self._leg_actuators[side]] = (hip_yaw, hip_roll, hip_pitch, knee,
+                                            ankle_pitch + ankle_pitch_fb, ankle_roll + ankle_roll_fb)
+        support_sign, swell = self._step_phase()
+        sway = support_sign * swell
+        nod = max(lifts) / g.step_height_m
+        waist_roll_amp, waist_yaw_amp, nod_amp, arm_amp = self._upper_body_amplitudes
+        arm = arm_amp * sway
+        roll, elbow = ARM_REST["shoulder_roll"], ARM_REST["elbow"]
+        # The upper body rolls towards the swing side (positive roll tilts the top towards -y);
+        # the CoM placement then shifts the pelvis further over the support foot. The arms
+        # swing against the legs; the neck keeps the camera level against the torso's lean.
+        t[self._upper_body_actuators] = (
+            waist_roll_amp * sway, waist_yaw_amp * sway, -self._lean + nod_amp * nod, 0.0,
+            arm, roll, 0.0, elbow, -arm, -roll, 0.0, elbow)
+        self._torso_pos = torso_pos
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, body_rot.ravel())
+        self._torso_quat = quat
+
+    def _update_com_offset(self) -> None:
+        """Offset of the torso from the robot's CoM for the current targets (MuJoCo kinematics)."""
+        scratch = self._scratch
+        adr = self._free_qpos
+        scratch.qpos[adr:adr + 3] = self._torso_pos
+        scratch.qpos[adr + 3:adr + 7] = self._torso_quat
+        scratch.qpos[self._actuator_qpos] = self.targets
+        mujoco.mj_kinematics(self.model, scratch)
+        mujoco.mj_comPos(self.model, scratch)
+        self._com_offset = self._torso_pos - scratch.subtree_com[self._torso_id]
+
+
+def _clip(value: float, limit: float) -> float:
+    """``value`` limited to [-limit, limit] (scalar; cheaper than numpy in the control loop)."""
+    return max(-limit, min(limit, value))

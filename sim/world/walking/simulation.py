@@ -1,0 +1,115 @@
+"""RobotSimulation: the humanoid walking under MuJoCo physics, driven by commands."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from sim.world.humanoid import CAMERA_NAME, MODEL_NAME
+from sim.world.walking.controller import WalkingController
+from sim.world.walking.falls import FallDetector, FallEvent
+from sim.world.walking.footsteps import Pose2D
+from sim.world.walking.gait import GaitParams, resolve_gait
+from sim.world.assembly import free_joint_qpos_address
+
+
+class RobotSimulation:
+    """The humanoid in a compiled world (sim.world), standing at its start pose.
+
+    Physics advances only through ``step``/``run``: each control period the walking controller
+    sets the servo targets, then MuJoCo integrates several physics steps. Nothing is
+    teleported or replayed; the base is free.
+
+    Args:
+        model: world from ``compile_world(assemble(...))``.
+        gait: GaitParams or a preset name of GAIT_PRESETS.
+        seed: seeds the small random perturbation of the initial joint angles.
+        control_period_s: control loop period (100 Hz by default, as OP3's walking module's
+            order of magnitude); rounded to a whole number of physics steps.
+        init_joint_noise_rad: amplitude of the uniform initial joint-angle perturbation.
+    """
+
+    def __init__(self, model: mujoco.MjModel, gait: GaitParams | str = "default", seed: int = 0,
+                 control_period_s: float = 0.01, init_joint_noise_rad: float = 0.002):
+        if control_period_s < model.opt.timestep:
+            raise ValueError(f"control_period_s must be >= the physics timestep "
+                             f"{model.opt.timestep}, got {control_period_s}")
+        self.model = model
+        self.gait = resolve_gait(gait)
+        self.seed = int(seed)
+        self.physics_steps_per_control = round(control_period_s / model.opt.timestep)
+        self.control_period_s = self.physics_steps_per_control * model.opt.timestep
+        self.camera_name = CAMERA_NAME
+        self.camera_id = model.camera(CAMERA_NAME).id
+        self.data = mujoco.MjData(model)
+        self.controller = WalkingController(model, self.gait, self.control_period_s)
+        self._falls = FallDetector(model)
+        self.fall: FallEvent | None = None
+        self._place_standing(init_joint_noise_rad)
+
+    def _place_standing(self, noise_rad: float) -> None:
+        """Reset fully and put the robot in its standing pose on the floor at its start pose."""
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)               # zeroes qacc_warmstart too
+        adr = free_joint_qpos_address(model)
+        x, y = data.qpos[adr:adr + 2]
+        w, _, _, z = data.qpos[adr + 3:adr + 7]
+        start = Pose2D(float(x), float(y), 2.0 * math.atan2(z, w))
+        torso_pos, torso_quat = self.controller.reset(start)
+        data.qpos[adr:adr + 3] = torso_pos
+        data.qpos[adr + 3:adr + 7] = torso_quat
+        rng = np.random.default_rng(self.seed)
+        for name, angle in self.controller.standing_qpos().items():
+            data.qpos[self.controller.joint_qpos_address[name]] = angle + rng.uniform(-noise_rad, noise_rad)
+        data.ctrl[:] = self.controller.targets
+        mujoco.mj_forward(model, data)
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def gait_cycle(self) -> int:
+        """Index of the gait cycle (two steps); 0 before the first step, then +1 at every
+        other step start."""
+        return (self.controller.planner.steps_started + 1) // 2
+
+    def command(self, forward_speed_mps: float = 0.0, yaw_rate_dps: float = 0.0) -> None:
+        """Walk forward at a speed (m/s) while turning at a yaw rate (deg/s, counter-clockwise
+        positive); (0, 0) stops and stands. Commands are clipped to the gait's limits."""
+        if not (math.isfinite(forward_speed_mps) and math.isfinite(yaw_rate_dps)):
+            raise ValueError(f"commands must be finite numbers, got {forward_speed_mps!r}, {yaw_rate_dps!r}")
+        self.controller.command(forward_speed_mps, yaw_rate_dps, self.time)
+
+    def step(self) -> None:
+        """Advance one control period: new servo targets, then the physics steps. A fall is
+        recorded in ``fall``; the simulation keeps running."""
+        self.controller.update(self.time, self.data)
+        mujoco.mj_step(self.model, self.data, nstep=self.physics_steps_per_control)
+        if self.fall is None:
+            self.fall = self._falls.check(self.data)
+
+    def run(self, duration_s: float) -> None:
+        """Step for ``duration_s`` of simulated time (whole control periods)."""
+        if not (math.isfinite(duration_s) and duration_s >= 0):
+            raise ValueError(f"duration_s must be a finite number >= 0, got {duration_s!r}")
+        for _ in range(round(duration_s / self.control_period_s)):
+            self.step()
+
+    def camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """The SR4000's pose now: position (3,) and orientation (3, 3), columns = camera x
+        (right), y (up), z (backwards: it looks along -z) in world coordinates."""
+        return (self.data.cam_xpos[self.camera_id].copy(),
+                self.data.cam_xmat[self.camera_id].reshape(3, 3).copy())
+
+    def foot_contacts(self) -> tuple[bool, bool]:
+        """(left, right): whether each foot touches the world."""
+        return self._falls.foot_contacts(self.data)
+
+    def torso_pose(self) -> tuple[np.ndarray, float]:
+        """Torso position (3,) and heading (rad) from the physics state."""
+        body = self.model.body(f"{MODEL_NAME}/torso").id
+        mat = self.data.xmat[body]
+        return self.data.xpos[body].copy(), math.atan2(mat[3], mat[0])

@@ -1,0 +1,116 @@
+"""The egostab command: help, listing, error reporting, ideal mode, aggregation."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from scenarios import SCENARIOS_DIR
+from sim.harness.cli import DEFAULT_SCENARIO, build_parser, main
+from sim.harness.scenario import list_scenarios
+from stabilizer import depth_to_disparity
+from stabilizer.testing import make_depth_scene
+
+SUBCOMMANDS = ("run", "ideal", "aggregate", "list", "bench", "gate", "sweep")
+
+
+@pytest.mark.parametrize("argv", [[]] + [[name] for name in SUBCOMMANDS])
+def test_help_of_every_subcommand(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--help"])
+    assert exit_info.value.code == 0
+    assert "usage: egostab" in capsys.readouterr().out
+
+
+def test_list_shows_every_shipped_scenario(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    names = [path.stem for path in list_scenarios()]
+    assert DEFAULT_SCENARIO in names and len(names) >= 7
+    for name in names:
+        assert name in out
+
+
+def test_unknown_method_is_rejected_with_the_accepted_ones(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(["run", "--methods", "t2fuzzy,orb"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "orb" in err and "fourier_mellin" in err
+
+
+@pytest.mark.parametrize("body, key", [
+    ("scene = 'corridor'\nspeed_of_light = 3\n", "speed_of_light"),
+    ("scene = 'corridor'\nduration_s = 'long'\n", "duration_s"),
+    ("scene = 'corridor'\n[sensor]\nfps = 90.0\n", "sensor.fps"),
+    ("scene = 'garage'\n", "scene"),
+])
+def test_bad_scenario_file_is_a_clear_error_and_writes_nothing(tmp_path, capsys, body, key):
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text(body)
+    out_dir = tmp_path / "out"
+    assert main(["run", str(scenario), "--out", str(out_dir), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert str(scenario) in err and key in err
+    assert not out_dir.exists()
+
+
+def _write_png(path, image):
+    assert cv2.imwrite(str(path), image)
+    return path
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_ideal_mode_on_a_png(tmp_path, capsys, bits):
+    depth = make_depth_scene(5)
+    image = depth_to_disparity(depth) if bits == 8 else np.rint(depth * 1000).astype(np.uint16)
+    png = _write_png(tmp_path / f"scene{bits}.png", image)
+    out_dir = tmp_path / "ideal"
+    assert main(["ideal", str(png), "--methods", "t2fuzzy,ecc", "--frames", "8",
+                 "--out", str(out_dir)]) == 0
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert metrics["summary"]["n_frames"] == 8
+    assert (out_dir / "estimates_t2fuzzy.png").is_file()
+    assert "Rotation displacement" in capsys.readouterr().out
+
+
+def test_ideal_mode_rejects_what_it_cannot_read(tmp_path, capsys):
+    rgb = _write_png(tmp_path / "rgb.png", np.zeros((20, 20, 3), np.uint8))
+    assert main(["ideal", str(rgb), "--out", str(tmp_path / "o")]) == 2
+    assert "single-channel" in capsys.readouterr().err
+    assert main(["ideal", "no_such_file.png", "--out", str(tmp_path / "o")]) == 2
+    assert "neither a file nor a scene" in capsys.readouterr().err
+
+
+def test_aggregate_makes_one_table_of_several_runs(tmp_path, capsys):
+    png = _write_png(tmp_path / "scene.png", depth_to_disparity(make_depth_scene(2)))
+    for name in ("a", "b"):
+        assert main(["ideal", str(png), "--methods", "ecc", "--frames", "4",
+                     "--out", str(tmp_path / name)]) == 0
+    capsys.readouterr()
+    table_path = tmp_path / "table.md"
+    assert main(["aggregate", str(tmp_path / "a"), str(tmp_path / "b"),
+                 "--out", str(table_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("ecc") >= 2
+    assert table_path.read_text().strip() == out.strip()
+
+
+def test_sweep_runs_the_real_runner_and_resumes(tmp_path, capsys):
+    sweep = tmp_path / "tiny.toml"
+    sweep.write_text(
+        f'scenarios = ["{(SCENARIOS_DIR / "ci" / "ci_corridor.toml").as_posix()}"]\n'
+        "seeds = [0]\nnoise_levels = [0.5, 2.0]\nmethods = [\"ecc\"]\nmax_frames = 4\n")
+    out_dir = tmp_path / "sweep"
+    assert main(["sweep", str(sweep), "--out", str(out_dir), "--workers", "2"]) == 0
+    runs = sorted((out_dir / "runs").iterdir())
+    assert len(runs) == 2
+    assert all(json.loads((run / "metrics.json").read_text())["status"] == "complete"
+               for run in runs)
+    assert (out_dir / "sweep.md").is_file() and "ecc" in capsys.readouterr().out
+    stamps = [(run / "metrics.json").stat().st_mtime_ns for run in runs]
+    assert main(["sweep", str(sweep), "--out", str(out_dir), "--workers", "2"]) == 0
+    assert [(run / "metrics.json").stat().st_mtime_ns for run in runs] == stamps

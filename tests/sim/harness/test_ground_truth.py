@@ -1,0 +1,292 @@
+"""Ground truth from exact poses (DESIGN.md, "Ground truth") against independent ray-cast frames."""
+
+import dataclasses
+import math
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless, as every run
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+
+from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame  # noqa: E402
+from sim.harness.ground_truth import fit_rigid_2d, ground_truth  # noqa: E402
+from stabilizer.api import available_methods, estimate  # noqa: E402
+from stabilizer.inputs import depth_to_disparity  # noqa: E402
+from stabilizer.motion import Motion, apply_motion, image_centre, motion_matrix  # noqa: E402
+from tests.sim.harness.scene_frames import (box_world, camera_matrix, facing_rectangle,  # noqa: E402
+                                    render_frame)
+
+#: The SR4000's image with square pixels, where a 3-D roll is exactly a 2-D rotation.
+SQUARE_PIXELS = CameraIntrinsics(176, 144, 220.0, 220.0, 87.5, 71.5)
+WORLD = box_world()
+ORIGIN = np.zeros(3)
+
+
+def _frames(intrinsics=SR4000_INTRINSICS, world=WORLD, current_pos=ORIGIN, **turn):
+    reference = render_frame(world, ORIGIN, camera_matrix(), 0, 0.0, intrinsics)
+    current = render_frame(world, current_pos, camera_matrix(**turn), 1, 0.1, intrinsics)
+    return reference, current
+
+
+def _agreement(reference, current, motion: Motion) -> float:
+    """Share of pixels valid in both where the warped reference equals the current frame."""
+    warped = apply_motion(reference.disparity8, motion)
+    both = (warped > 0) & (current.disparity8 > 0)
+    return float(np.mean(np.abs(warped[both].astype(int) - current.disparity8[both]) <= 1))
+
+
+def _negated(motion: Motion) -> Motion:
+    return Motion(-motion.angle_deg, -motion.dx, -motion.dy)
+
+
+@pytest.mark.parametrize("roll_deg", [-12.0, -3.0, 4.0, 10.0])
+def test_pure_roll_with_square_pixels_is_exactly_the_roll_angle(roll_deg):
+    # Rolling the camera counter-clockwise (right-hand rule about its backward z axis) turns
+    # the scene clockwise as displayed: a negative angle in the OpenCV/Motion convention.
+    truth = ground_truth(*_frames(SQUARE_PIXELS, roll_deg=roll_deg), intrinsics=SQUARE_PIXELS)
+    assert truth.ok
+    assert truth.motion.angle_deg == pytest.approx(-roll_deg, abs=1e-6)
+    assert truth.motion.dx == pytest.approx(0.0, abs=1e-6)
+    assert truth.motion.dy == pytest.approx(0.0, abs=1e-6)
+    assert truth.residual_rms_px == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("roll_deg", [-8.0, 5.0])
+def test_pure_roll_on_the_sr4000_is_the_roll_angle_up_to_its_pixel_aspect(roll_deg):
+    # fy/fx = 1.051: a 3-D roll is a rotation plus a slight shear in pixels, so the best rigid
+    # angle is within ~1.2% of the roll and the shear shows as a residual.
+    truth = ground_truth(*_frames(roll_deg=roll_deg))
+    assert truth.motion.angle_deg == pytest.approx(-roll_deg, rel=0.015)
+    assert abs(truth.motion.dx) < 0.01 and abs(truth.motion.dy) < 0.01
+    assert 0.0 < truth.residual_rms_px < 0.1 * abs(roll_deg)
+
+
+@pytest.mark.parametrize("turn", [{"roll_deg": 6.0}, {"roll_deg": -9.0}, {"yaw_deg": 2.5},
+                                  {"pitch_deg": -2.0}, {"roll_deg": 4.0, "yaw_deg": -1.5}])
+def test_warping_the_reference_by_the_truth_reproduces_the_current_frame(turn):
+    # The convention check: stabilizer.apply_motion(reference, truth) must look like the frame
+    # ray-cast from the moved camera, and clearly better than the opposite motion.
+    reference, current = _frames(**turn)
+    truth = ground_truth(reference, current)
+    right = _agreement(reference, current, truth.motion)
+    wrong = _agreement(reference, current, _negated(truth.motion))
+    assert right > 0.97
+    assert right - wrong > 0.05
+
+
+@pytest.mark.parametrize("yaw_deg", [-3.0, -1.0, 1.0, 2.0])
+def test_small_pure_yaw_shifts_x_by_about_f_tan_yaw(yaw_deg):
+    # Turning left (positive about the camera's up axis) moves the scene right (+x). Off-axis
+    # pixels move by fx (1 + x^2) dpsi, which averages ~5% above fx tan(yaw) over the image.
+    truth = ground_truth(*_frames(yaw_deg=yaw_deg))
+    expected = SR4000_INTRINSICS.fx * math.tan(math.radians(yaw_deg))
+    assert math.copysign(1.0, truth.motion.dx) == math.copysign(1.0, yaw_deg)
+    assert truth.motion.dx == pytest.approx(expected, rel=0.08)
+    assert abs(truth.motion.dy) < 0.05 * abs(expected)
+    assert abs(truth.motion.angle_deg) < 0.05
+
+
+def test_walking_toward_a_flat_wall_is_no_motion_with_the_zoom_as_residual():
+    wall_m, step_m = 3.0, 0.3
+    wall = [facing_rectangle(wall_m, 0.0, 0.0, 20.0, 20.0)]
+    reference, current = _frames(world=wall, current_pos=np.array([step_m, 0.0, 0.0]))
+    truth = ground_truth(reference, current)
+    # Every point moves radially by (zoom - 1) |p - c|; only those still in view are fitted.
+    # The fit has no rotation; its shift is the zoom of the sample's centroid offset (a
+    # fraction of a pixel: the stride-2 grid is not symmetric about c) and the residual is the
+    # zoom of the spread about that centroid.
+    zoom = wall_m / (wall_m - step_m)
+    rows, cols = np.mgrid[0:144:2, 0:176:2]
+    cx, cy = image_centre((144, 176))
+    offset = np.stack([cols - cx, rows - cy], axis=-1).reshape(-1, 2)
+    moved = offset * zoom + (cx, cy)
+    seen = ((moved[:, 0] >= -0.5) & (moved[:, 0] < 175.5)
+            & (moved[:, 1] >= -0.5) & (moved[:, 1] < 143.5))
+    centroid = offset[seen].mean(axis=0)
+    spread = offset[seen] - centroid
+    assert truth.n_points == int(np.count_nonzero(seen))
+    assert truth.motion.angle_deg == pytest.approx(0.0, abs=1e-6)
+    assert (truth.motion.dx, truth.motion.dy) == pytest.approx(tuple((zoom - 1) * centroid),
+                                                               abs=1e-6)
+    assert abs(truth.motion.dx) < 0.1 and abs(truth.motion.dy) < 0.1
+    expected_residual = (zoom - 1.0) * np.sqrt(np.mean(np.sum(spread ** 2, axis=1)))
+    assert truth.residual_rms_px == pytest.approx(expected_residual, rel=1e-6)
+    assert truth.residual_rms_px > 3.0
+
+
+def test_occluded_points_are_dropped():
+    # Stepping sideways hides part of the wall behind the near box: those points are dropped.
+    reference, current = _frames(current_pos=np.array([0.0, 0.15, 0.0]))
+    with_check = ground_truth(reference, current)
+    without_check = ground_truth(reference, current, occlusion_abs_m=1e9)
+    assert with_check.n_points < without_check.n_points
+
+
+def test_exact_depth_overrides_phase_wrapped_reported_depth():
+    # A wall at 6 m is past the SR4000's 5 m unambiguous range: reported at ~1 m. With the
+    # camera stepping sideways, that false depth gives false parallax unless the exact
+    # (rendered) depth is used.
+    world = box_world(wall_m=6.0)
+    reference, current = _frames(world=world, current_pos=np.array([0.05, 0.04, 0.0]),
+                                 yaw_deg=2.0)
+    exact = ground_truth(reference, current)
+
+    def wrapped(frame):
+        depth = np.where(frame.depth_m > 5.0, frame.depth_m - 5.0, frame.depth_m)
+        return dataclasses.replace(frame, depth_m=depth.astype(np.float32))
+
+    reported = ground_truth(wrapped(reference), wrapped(current))
+    assert abs(reported.motion.dx - exact.motion.dx) > 1.0
+    restored = ground_truth(wrapped(reference), wrapped(current),
+                            reference_depth_m=reference.depth_m, current_depth_m=current.depth_m)
+    assert restored == exact
+
+
+def test_exact_depth_of_the_wrong_size_is_rejected():
+    reference, current = _frames()
+    with pytest.raises(ValueError, match="current_depth_m"):
+        ground_truth(reference, current, current_depth_m=np.ones((3, 3)))
+
+
+def test_camera_turned_away_has_no_overlap():
+    reference, current = _frames(yaw_deg=180.0)
+    truth = ground_truth(reference, current)
+    assert not truth.ok
+    assert truth.motion.status == "no_overlap"
+    assert math.isnan(truth.residual_rms_px) and truth.n_points == 0
+
+
+def test_empty_reference_has_no_overlap():
+    reference, current = _frames()
+    empty = dataclasses.replace(reference, depth_m=np.zeros_like(reference.depth_m),
+                                valid=np.zeros_like(reference.valid))
+    assert ground_truth(empty, current).motion.status == "no_overlap"
+
+
+def test_same_input_gives_bit_identical_output():
+    reference, current = _frames(roll_deg=3.0, yaw_deg=1.0)
+    assert ground_truth(reference, current) == ground_truth(reference, current)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"depth_m": np.zeros((10, 10), np.float32)}, "depth_m and valid"),
+    ({"cam_mat": np.eye(4)}, "cam_mat"),
+])
+def test_bad_frames_are_rejected(change, message):
+    reference, current = _frames()
+    with pytest.raises(ValueError, match=message):
+        ground_truth(dataclasses.replace(reference, **change), current)
+
+
+@pytest.mark.parametrize("stride", [0, -1, 1.5, True])
+def test_bad_stride_is_rejected(stride):
+    with pytest.raises(ValueError, match="stride"):
+        ground_truth(*_frames(), stride=stride)
+
+
+@settings(max_examples=40, deadline=None)
+@given(angle=st.floats(-170, 170), dx=st.floats(-50, 50), dy=st.floats(-50, 50))
+def test_rigid_fit_recovers_any_motion_matrix(angle, dx, dy):
+    rng = np.random.default_rng(0)
+    source = rng.uniform(0, [176, 144], size=(200, 2))
+    matrix = motion_matrix(Motion(angle, dx, dy), (144, 176))
+    fit = fit_rigid_2d(source, source @ matrix[:, :2].T + matrix[:, 2], image_centre((144, 176)))
+    assert fit.angle_deg == pytest.approx(angle, abs=1e-7)
+    assert fit.dx == pytest.approx(dx, abs=1e-6) and fit.dy == pytest.approx(dy, abs=1e-6)
+    assert fit.residual_rms_px < 1e-6
+
+
+def test_rigid_fit_rejects_mismatched_points():
+    with pytest.raises(ValueError, match="N x 2"):
+        fit_rigid_2d(np.zeros((5, 2)), np.zeros((4, 2)), (0.0, 0.0))
+
+
+# --------------------------------------------------------------------------- MuJoCo frames
+# The same world as box_world() (boxes of negligible thickness; the wall's front face at 3 m),
+# seen by a camera with the SR4000's intrinsics on a mocap body: the conventions of
+# data.cam_xmat, of MuJoCo's depth images and of the Motion contract are checked together.
+MJCF = """
+<mujoco>
+  <visual><map znear="0.01" zfar="100"/></visual>
+  <statistic extent="1" center="0 0 0"/>
+  <worldbody>
+    <geom type="box" pos="3.05 0 0" size="0.05 20 20"/>
+    <geom type="box" pos="1.2 0.25 0.1" size="0.0005 0.12 0.18"/>
+    <geom type="box" pos="1.8 -0.4 -0.2" size="0.0005 0.2 0.1"/>
+    <geom type="box" pos="2.2 0.1 0.35" size="0.0005 0.25 0.08"/>
+    <body name="head" mocap="true">
+      <camera name="sr4000" xyaxes="0 -1 0 0 0 1" resolution="176 144"
+              focalpixel="220.0 231.2" sensorsize="0.00704 0.00576"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+#: The camera's axes in its body frame (columns), as xyaxes above says.
+CAMERA_IN_BODY = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+TURNS = [{"roll_deg": 6.0}, {"yaw_deg": 3.0}, {"pitch_deg": -3.0},
+         {"roll_deg": -4.0, "yaw_deg": -2.0}]
+
+
+@pytest.fixture(scope="module")
+def mujoco_frames():
+    """Reference frame and one current frame per turn in TURNS, rendered by MuJoCo (EGL)."""
+    model = mujoco.MjModel.from_xml_string(MJCF)
+    data = mujoco.MjData(model)
+    with mujoco.Renderer(model, 144, 176) as renderer:
+        renderer.enable_depth_rendering()
+
+        def render(index, **turn):
+            body = camera_matrix(**turn) @ CAMERA_IN_BODY.T
+            data.mocap_pos[0] = 0.0
+            data.mocap_quat[0] = Rotation.from_matrix(body).as_quat(scalar_first=True)
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera="sr4000")
+            depth = renderer.render().astype(np.float32)
+            return Frame(index, 0.0, depth, depth > 0, depth_to_disparity(depth),
+                         data.cam_xpos[0].copy(), data.cam_xmat[0].reshape(3, 3).copy())
+
+        return render(0), [render(i + 1, **turn) for i, turn in enumerate(TURNS)]
+
+
+def test_mujoco_renders_what_the_test_ray_caster_computes(mujoco_frames):
+    # Ties the ray-cast tests above to MuJoCo: same pose, intrinsics and pixel centres.
+    reference, _ = mujoco_frames
+    expected = render_frame(WORLD, ORIGIN, camera_matrix())
+    assert np.allclose(reference.cam_mat, camera_matrix(), atol=1e-9)
+    assert np.mean(np.abs(reference.depth_m - expected.depth_m) > 0.005) < 0.002
+
+
+@pytest.mark.parametrize("turn_index", range(len(TURNS)))
+def test_truth_of_mujoco_frames_warps_the_reference_onto_the_current_frame(mujoco_frames,
+                                                                           turn_index):
+    reference, currents = mujoco_frames
+    current = currents[turn_index]
+    truth = ground_truth(reference, current)
+    right = _agreement(reference, current, truth.motion)
+    assert right > 0.97
+    assert right - _agreement(reference, current, _negated(truth.motion)) > 0.05
+
+
+# "t2fuzzy_paper" is the same estimator class as "t2fuzzy" (so the same sign convention) with
+# the refinements off; on these frames the paper's stages alone make gross errors (an angle of
+# -86 deg for a true 4 deg: most subband ellipses agree on a wrong angle), which says nothing
+# about the convention. Its accuracy is measured by the runs and the ideal experiment instead.
+CONVENTION_METHODS = [m for m in available_methods() if m != "t2fuzzy_paper"]
+
+
+@pytest.mark.parametrize("method", CONVENTION_METHODS)
+def test_estimators_agree_in_sign_with_the_truth_on_mujoco_frames(mujoco_frames, method):
+    """Each clear component of the truth (>= 2 deg, >= 4 px) has the estimate's sign."""
+    reference, currents = mujoco_frames
+    for turn, current in zip(TURNS, currents):
+        truth = ground_truth(reference, current).motion.as_tuple()
+        found = estimate(reference.disparity8, current.disparity8, method)
+        assert found.ok, (turn, found.status)
+        for true_value, value, clear in zip(truth, found.as_tuple(), (2.0, 4.0, 4.0)):
+            if abs(true_value) >= clear:
+                assert np.sign(value) == np.sign(true_value), (turn, truth, found.as_tuple())

@@ -1,0 +1,208 @@
+"""The rerun recording: written to a file, read back with rerun's own reader."""
+
+import dataclasses
+import json
+import re
+from collections import defaultdict
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from sim.harness.ground_truth import ground_truth
+from sim.harness.recording import RunRecorder, ellipse_outline, label_colours
+from stabilizer.motion import Motion, compensate
+from tests.sim.harness.scene_frames import box_world, camera_matrix, render_frame
+
+METHODS = ("t2fuzzy", "sift")
+N_FRAMES = 6
+LABELS = np.zeros((144, 176), np.int32)
+LABELS[30:60, 40:90] = 1
+LABELS[80:100, 100:150] = 2
+ELLIPSES = [(65.0, 45.0, 25.0, 15.0, 0.0), (125.0, 90.0, 25.0, 10.0, -30.0)]
+
+
+def _frames():
+    world = box_world()
+    return [render_frame(world, [0.02 * i, 0.0, 0.0], camera_matrix(roll_deg=1.5 * i), i, i / 30)
+            for i in range(N_FRAMES)]
+
+
+def _record(path, frame_stride=1, fail_sift_on=(2,)):
+    frames = _frames()
+    with RunRecorder(path, METHODS, frame_stride=frame_stride,
+                     properties={"scenario": {"name": "boxes", "walk": [1, 2]}, "seed": 7}) as rec:
+        for frame in frames:
+            truth = ground_truth(frames[0], frame)
+            estimates = {
+                "t2fuzzy": Motion(*truth.motion.as_tuple(),
+                                  diagnostics={"labels": LABELS, "ellipses": ELLIPSES}),
+                "sift": (Motion.failed("no_structure") if frame.index in fail_sift_on
+                         else Motion(*truth.motion.as_tuple())),
+            }
+            compensated = {m: compensate(frame.disparity8, e) for m, e in estimates.items()}
+            rec.log_frame(frame, estimates=estimates, truth=truth, compensated=compensated)
+        rec.log_event("run complete")
+    return rec
+
+
+def _rows_per_entity(path):
+    """entity -> (static rows, temporal rows, timelines) from the store's summary."""
+    rows = defaultdict(lambda: [0, 0, set()])
+    pattern = re.compile(r"^(\S+) rows=(\d+) static=(True|False) timelines=\[(.*?)\]")
+    for line in RrdReader(str(path)).store().summary().splitlines():
+        match = pattern.match(line)
+        assert match, line
+        entity, count, static, timelines = match.groups()
+        rows[entity][0 if static == "True" else 1] += int(count)
+        rows[entity][2] |= set(re.findall(r"'([^']+)'", timelines))
+    return rows
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "run" / "recording.rrd"
+    recorder = _record(path)
+    return path, recorder
+
+
+def test_recording_holds_every_entity_with_one_row_per_frame(recording):
+    path, recorder = recording
+    rows = _rows_per_entity(path)
+    per_frame = ["/world/camera", "/world/camera/image/depth", "/world/robot_path",
+                 "/images/disparity", "/images/segmentation", "/images/segmentation/ellipses",
+                 "/images/compensated/t2fuzzy", "/images/compensated/sift",
+                 "/series/truth_residual_px"]
+    per_frame += [f"/series/{axis}/{name}" for axis in ("rotation", "x", "y")
+                  for name in ("truth", "t2fuzzy")]
+    per_frame += [f"/errors/{axis}/t2fuzzy" for axis in ("rotation", "x", "y")]
+    for entity in per_frame:
+        assert rows[entity][1] == N_FRAMES, entity
+        assert rows[entity][2] == {"frame", "sim_time"}, entity
+    # sift failed on one frame: no estimate, no error logged for it.
+    assert rows["/series/x/sift"][1] == N_FRAMES - 1
+    assert rows["/errors/y/sift"][1] == N_FRAMES - 1
+    assert rows["/events"][1] == 1
+    assert recorder.frames_logged == N_FRAMES and recorder.images_logged == N_FRAMES
+
+
+def test_recording_holds_static_setup_and_properties(recording):
+    path, _ = recording
+    rows = _rows_per_entity(path)
+    for entity in ("/world", "/world/camera/image", "/images/segmentation",
+                   "/series/rotation/truth", "/series/x/sift", "/errors/y/t2fuzzy",
+                   "/__properties/run", "/__properties/provenance"):
+        assert rows[entity][0] >= 1, entity
+    summary = RrdReader(str(path)).store().summary()
+    assert re.search(r"/__properties/run .*'scenario'.*'seed'", summary)
+    assert re.search(r"/__properties/provenance .*'git_commit'.*'versions'", summary)
+    assert "Pinhole:image_from_camera" in summary and "AnnotationContext:context" in summary
+    assert "DepthImage:meter" in summary and "SeriesLines:colors" in summary
+
+
+def test_properties_keep_the_resolved_scenario(recording):
+    path, _ = recording
+    chunks = [chunk for chunk in RrdReader(str(path)).stream().to_chunks()
+              if chunk.entity_path == "/__properties/run"]
+    table = chunks[0].to_record_batch().to_pydict()
+    column = next(name for name in table if name.endswith("scenario"))
+    stored = table[column][0]
+    stored = stored[0] if isinstance(stored, list) else stored
+    assert json.loads(stored) == {"name": "boxes", "walk": [1, 2]}
+
+
+def test_frame_stride_logs_images_of_every_nth_frame_and_all_scalars(tmp_path):
+    path = tmp_path / "strided.rrd"
+    recorder = _record(path, frame_stride=4)
+    rows = _rows_per_entity(path)
+    assert rows["/images/disparity"][1] == 2  # frames 0 and 4
+    assert rows["/world/camera/image/depth"][1] == 2
+    assert rows["/series/x/truth"][1] == N_FRAMES
+    assert recorder.images_logged == 2
+
+
+def test_no_temporary_file_is_left_behind(recording):
+    path, _ = recording
+    assert sorted(p.name for p in path.parent.iterdir()) == ["recording.rrd"]
+
+
+def test_interrupted_run_keeps_the_frames_logged(tmp_path):
+    path = tmp_path / "interrupted.rrd"
+    frames = _frames()
+    with pytest.raises(KeyboardInterrupt):
+        with RunRecorder(path, ["sift"]) as rec:
+            for frame in frames[:3]:
+                rec.log_frame(frame, estimates={"sift": Motion(0.0, 0.0, 0.0)})
+            raise KeyboardInterrupt
+    assert _rows_per_entity(path)["/images/disparity"][1] == 3
+
+
+def test_methods_without_diagnostics_log_no_segmentation(tmp_path):
+    path = tmp_path / "plain.rrd"
+    with RunRecorder(path, ["icp"]) as rec:
+        rec.log_frame(_frames()[1], estimates={"icp": Motion(1.0, 2.0, 3.0)})
+    rows = _rows_per_entity(path)
+    assert rows["/images/segmentation"][1] == 0 and rows["/series/x/icp"][1] == 1
+    assert rows["/errors/x/icp"][1] == 0  # no truth given, so no error
+
+
+def test_bad_arguments_are_rejected(tmp_path):
+    with pytest.raises(ValueError, match="frame_stride"):
+        RunRecorder(tmp_path / "a.rrd", ["sift"], frame_stride=0)
+    with pytest.raises(ValueError, match="distinct"):
+        RunRecorder(tmp_path / "b.rrd", ["sift", "sift"])
+    with RunRecorder(tmp_path / "c.rrd", ["sift"]) as rec:
+        with pytest.raises(ValueError, match="unknown methods"):
+            rec.log_frame(_frames()[0], estimates={"icp": Motion(0.0, 0.0, 0.0)})
+    with pytest.raises(ValueError, match="closed"):
+        rec.log_frame(_frames()[0], estimates={})
+
+
+def test_ellipse_outline_follows_the_image_angle_convention():
+    # Major axis at +90 deg from +x toward +y (image y down): the ellipse is tall.
+    outline = ellipse_outline(10.0, 20.0, 8.0, 3.0, 90.0)
+    assert np.allclose(outline[0], outline[-1])
+    assert np.ptp(outline[:, 1]) == pytest.approx(16.0, abs=1e-6)
+    assert np.ptp(outline[:, 0]) == pytest.approx(6.0, abs=0.05)
+    tilted = ellipse_outline(0.0, 0.0, 8.0, 3.0, 30.0)
+    # The point of the outline farthest from the centre lies along 30 deg below +x.
+    far = tilted[np.argmax(np.hypot(tilted[:, 0], tilted[:, 1]))]
+    assert np.degrees(np.arctan2(far[1], far[0])) % 180 == pytest.approx(30.0, abs=4.0)
+
+
+def test_label_colours_start_with_unlabelled_black():
+    classes = label_colours(3)
+    assert classes[0] == (0, "unlabelled", (0, 0, 0))
+    assert [c[0] for c in classes] == [0, 1, 2, 3]
+    assert len({c[2] for c in classes}) == 4
+
+
+def test_pinhole_uses_rerun_pixel_corner_convention(recording):
+    # Rerun's principal point for a centred 176 x 144 camera is (88, 72); the harness' is
+    # (87.5, 71.5) with pixel centres at integers.
+    path, _ = recording
+    chunk = next(chunk for chunk in RrdReader(str(path)).stream().to_chunks()
+                 if chunk.entity_path == "/world/camera/image")
+    table = chunk.to_record_batch().to_pydict()
+    column = next(name for name in table if name.endswith("image_from_camera"))
+    matrix = np.array(table[column][0], dtype=np.float64).reshape(-1)
+    matrix = matrix.reshape(3, 3, order="F")  # rerun stores Mat3x3 column-major
+    assert matrix[0, 2] == pytest.approx(88.0) and matrix[1, 2] == pytest.approx(72.0)
+    assert matrix[0, 0] == pytest.approx(220.0, abs=0.1)
+    assert matrix[1, 1] == pytest.approx(231.2, abs=0.1)
+
+
+def test_long_paths_are_thinned_but_keep_their_ends(tmp_path, monkeypatch):
+    monkeypatch.setattr("sim.harness.recording.PATH_MAX_POINTS", 4)
+    path = tmp_path / "path.rrd"
+    frame = _frames()[0]
+    with RunRecorder(path, ["icp"], frame_stride=10) as rec:
+        for index in range(11):
+            rec.log_frame(dataclasses.replace(frame, index=index), estimates={},
+                          robot_position=[float(index), 0.0, 0.0])
+    strips = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        if chunk.entity_path == "/world/robot_path":
+            table = chunk.to_record_batch().to_pydict()
+            strips += table[next(name for name in table if name.endswith("strips"))]
+    assert [[point[0] for point in row[0]] for row in strips] == [[0.0], [0.0, 3.0, 7.0, 10.0]]

@@ -1,0 +1,208 @@
+"""Run outputs: frames.csv, metrics.json, summary.md (Table I layout), plots, aggregation."""
+
+import csv
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from sim.harness.atomic import atomic_path, write_text_atomic
+from sim.harness.ground_truth import GroundTruth
+from sim.harness.provenance import git_state, package_versions
+from sim.harness.report import aggregate_runs, read_metrics, table_one, terminal_summary, write_run_outputs
+from sim.harness.scoring import RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary, summarize
+from stabilizer.motion import Motion
+
+METHODS = ("t2fuzzy", "sift")
+SCENARIO = {"name": "corridor walk", "seed": 11, "walk": {"speed": 0.1}, "limits": (1, 2)}
+
+
+def _records(n_frames=40, seed=0):
+    rng = np.random.default_rng(seed)
+    records = []
+    for i in range(n_frames):
+        truth = GroundTruth(Motion(4 * np.sin(i / 5), 15 * np.sin(i / 4), 3 * np.cos(i / 6)),
+                            0.4, 1200)
+        if i == 7:
+            truth = GroundTruth(Motion.failed("no_overlap"), math.nan, 0)
+        for method in METHODS:
+            estimate = Motion(truth.motion.angle_deg + rng.normal(0, 0.3),
+                              truth.motion.dx + rng.normal(0, 1.0),
+                              truth.motion.dy + rng.normal(0, 1.0))
+            if method == "sift" and i % 10 == 3:
+                estimate = Motion.failed("too_few_matches")
+            records.append(FrameRecord.score(
+                frame_index=i, time_s=i / 30, gait_cycle=i // 20, reference_index=20 * (i // 20),
+                method=method, estimate=estimate, truth=truth, ms=2.0 + i % 3))
+    return records
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("runs") / "run_a"
+    records = _records()
+    itf = ItfAccumulator()
+    image = np.full((8, 8), 100, np.uint8)
+    for _ in range(3):
+        for stream in ("raw", *METHODS):
+            itf.add(stream, image, gait_cycle=0, reference_index=0)
+    summary = summarize(records, itf)
+    files = write_run_outputs(run_dir, scenario=SCENARIO, records=records, summary=summary,
+                              meta={"seed": 11, "methods": list(METHODS)}, status="complete")
+    return run_dir, files, records, summary
+
+
+def test_every_file_is_written_and_no_temporary_is_left(run):
+    run_dir, files, _, _ = run
+    names = sorted(p.name for p in run_dir.iterdir())
+    assert names == sorted(["frames.csv", "metrics.json", "summary.md", "estimates_t2fuzzy.png",
+                            "estimates_sift.png", "error_histograms.png"])
+    for plot in files.plots:
+        assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_frames_csv_has_one_row_per_frame_and_method(run):
+    _, files, records, _ = run
+    with files.frames_csv.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert tuple(rows[0]) == RECORD_FIELDS
+    assert len(rows) == len(records) == 80
+    first = records[0]
+    assert float(rows[0]["est_dx_px"]) == first.est_dx_px  # floats round-trip exactly
+    failed = [row for row in rows if row["status"] != "ok"]
+    assert {row["status"] for row in failed} == {"too_few_matches"}
+    assert all(math.isnan(float(row["err_dx_px"])) for row in failed)
+
+
+def test_metrics_json_has_scenario_seed_status_versions_commit_and_scores(run):
+    _, files, _, summary = run
+    document = json.loads(files.metrics_json.read_text())
+    assert document["status"] == "complete" and document["seed"] == 11
+    assert document["scenario"] == {"name": "corridor walk", "seed": 11,
+                                    "walk": {"speed": 0.1}, "limits": [1, 2]}
+    versions = document["provenance"]["versions"]
+    assert set(versions) >= {"python", "numpy", "opencv", "pywt", "mujoco", "dm_control",
+                             "rerun"}
+    assert versions["rerun"] == "0.41.0"
+    assert "git_commit" in document["provenance"]
+    sift = document["summary"]["run"]["sift"]
+    assert sift["n_failed"] == 4 and sift["n_truth_failed"] == 1
+    assert sift["errors"]["x"]["mean"] == pytest.approx(summary.run["sift"].errors["x"].mean)
+    assert sift["itf_db"] == 100.0
+    assert set(document["summary"]["cycles"]) == {"0", "1"}
+    assert document["files"]["plots"] == [p.name for p in files.plots]
+    assert read_metrics(files.run_dir) == document
+
+
+def test_summary_md_is_table_one_layout(run):
+    _, files, _, summary = run
+    text = files.summary_md.read_text()
+    assert "| Displacement | Method | Mean of errors | Variance | Max | Frames |" in text
+    lines = text.splitlines()
+    start = lines.index("| Displacement | Method | Mean of errors | Variance | Max | Frames |")
+    body = lines[start + 2:start + 8]
+    assert [line.split("|")[1].strip() for line in body] == [
+        "Rotation displacement (deg)", "", "X-axis displacement (px)", "",
+        "Y-axis displacement (px)", ""]
+    assert [line.split("|")[2].strip() for line in body] == ["t2fuzzy", "sift"] * 3
+    rotation = summary.run["t2fuzzy"].errors["rotation"]
+    assert f"| {rotation.mean:.2f} | {rotation.variance:.2f} | {rotation.max:.2f} |" in body[0]
+    assert "ITF raw (dB)" in text and "complete" in text and "Per gait cycle" in text
+    assert "`estimates_sift.png`" in text
+
+
+def test_terminal_summary_fits_one_screen_and_says_where_files_are(run):
+    _, files, _, summary = run
+    text = terminal_summary(files.metrics, files.run_dir)
+    assert text == terminal_summary(read_metrics(files.run_dir), files.run_dir)
+    assert len(text.splitlines()) <= 40
+    assert table_one(summary.run) in text and str(files.run_dir) in text
+    assert "metrics.json" in text and "estimates_sift.png" in text
+    assert "10.0% (4/40)" in text and text.startswith("Run complete: 40 frames.")
+
+
+def test_rewriting_replaces_files_and_keeps_the_new_status(run, tmp_path):
+    _, _, records, summary = run
+    for status in ("interrupted", "fell at 3.2 s"):
+        files = write_run_outputs(tmp_path, scenario={}, records=records[:10], summary=summary,
+                                  meta={}, status=status, plots=False)
+        assert json.loads(files.metrics_json.read_text())["status"] == status
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames.csv", "metrics.json",
+                                                          "summary.md"]
+
+
+def test_aggregate_runs_makes_one_table(run, tmp_path):
+    run_dir, _, records, _ = run
+    other = tmp_path / "run_b"
+    write_run_outputs(other, scenario={"name": "lab"}, records=records[:20],
+                      summary=summarize(records[:20]), meta={}, status="interrupted",
+                      plots=False)
+    table = aggregate_runs([run_dir, other])
+    lines = table.splitlines()
+    assert len(lines) == 2 + 4
+    assert lines[2].startswith("| run_a | corridor walk | complete | t2fuzzy | 40 |")
+    assert lines[4].startswith("| run_b | lab | interrupted | t2fuzzy | 10 |")
+
+
+def test_aggregate_rejects_folders_without_metrics(tmp_path):
+    with pytest.raises(ValueError, match="metrics.json"):
+        aggregate_runs([tmp_path])
+    with pytest.raises(ValueError, match="no runs"):
+        aggregate_runs([])
+    (tmp_path / "metrics.json").write_text('{"format": "other"}')
+    with pytest.raises(ValueError, match="not a run's metrics"):
+        read_metrics(tmp_path)
+
+
+def test_bad_status_is_rejected(run, tmp_path):
+    _, _, records, summary = run
+    with pytest.raises(ValueError, match="status"):
+        write_run_outputs(tmp_path, scenario={}, records=records, summary=summary, meta={},
+                          status="")
+
+
+def test_atomic_write_leaves_the_old_file_when_the_writer_fails(tmp_path):
+    target = tmp_path / "sub" / "file.txt"
+    write_text_atomic(target, "old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as temporary:
+            temporary.write_text("half")
+            raise RuntimeError("crash while writing")
+    assert target.read_text() == "old"
+    assert os.listdir(target.parent) == ["file.txt"]
+
+
+def test_provenance_without_git_is_none(tmp_path):
+    assert git_state(tmp_path) == {"commit": None, "dirty": None}
+    assert package_versions()["numpy"] == np.__version__
+
+
+def test_a_run_that_scored_nothing_still_writes_every_file(tmp_path):
+    empty = summarize([])
+    files = write_run_outputs(tmp_path / "fell", scenario={"name": "stairs"}, records=[],
+                              summary=empty, meta={}, status="fell at 0.0 s")
+    assert json.loads(files.metrics_json.read_text())["status"] == "fell at 0.0 s"
+    assert "Run fell at 0.0 s: 0 frames." in terminal_summary(files.metrics)
+    table_path = tmp_path / "table.md"
+    table = aggregate_runs([files.run_dir], out_path=table_path)
+    assert "| fell | stairs | fell at 0.0 s | - | 0 |" in table
+    assert table_path.read_text() == table + "\n"
+
+
+def test_recording_is_listed_with_how_to_open_it(run, tmp_path):
+    _, _, records, summary = run
+    files = write_run_outputs(tmp_path, scenario={}, records=records, summary=summary, meta={},
+                              status="complete", plots=False,
+                              recording=tmp_path / "recording.rrd")
+    assert "`recording.rrd`" in files.summary_md.read_text()
+    assert "rerun FILE" in terminal_summary(files.metrics, tmp_path)
+
+
+def test_summary_survives_the_json_round_trip(run):
+    _, files, _, summary = run
+    restored = RunSummary.from_dict(json.loads(files.metrics_json.read_text())["summary"])
+    assert restored.methods == summary.methods and restored.n_frames == summary.n_frames
+    assert restored.run["sift"].errors == summary.run["sift"].errors
+    assert restored.cycles[1]["t2fuzzy"].n_scored == summary.cycles[1]["t2fuzzy"].n_scored

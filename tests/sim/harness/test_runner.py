@@ -1,0 +1,150 @@
+"""The runner end to end on short real runs: outputs, determinism, policies and faults."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import sim.harness.ground_truth
+from scenarios import SCENARIOS_DIR
+from sim.harness.runner import RunConfig, run
+from sim.world.sensor.sr4000 import SR4000
+from sim.world.walking import RobotSimulation
+
+CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
+METHODS = ("t2fuzzy", "ecc")
+
+
+def _rows(run_dir):
+    with open(run_dir / "frames.csv", newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _short_run(tmp_path, name="run", record=False, **kwargs):
+    """12 frames of the CI corridor walk (its recording is off unless ``record``)."""
+    config = dict(scenario=CI_CORRIDOR, out_dir=str(tmp_path / name), methods=METHODS,
+                  record=record, max_frames=12,
+                  overrides={"recording.enabled": True} if record else {})
+    config.update(kwargs)
+    return run(RunConfig(**config)), tmp_path / name
+
+
+def test_run_writes_every_output_and_they_agree(tmp_path):
+    metrics, run_dir = _short_run(tmp_path, record=True)
+    assert metrics["status"] == "complete"
+    for name in ("frames.csv", "metrics.json", "summary.md", "recording.rrd",
+                 "error_histograms.png", "estimates_t2fuzzy.png", "estimates_ecc.png"):
+        assert (run_dir / name).stat().st_size > 0, name
+    assert not list(run_dir.glob(".*.tmp")), "temporary files left behind"
+    rows = _rows(run_dir)
+    assert len(rows) == 12 * len(METHODS)
+    assert {row["method"] for row in rows} == set(METHODS)
+    on_disk = json.loads((run_dir / "metrics.json").read_text())
+    assert on_disk["status"] == "complete" and on_disk["run"]["frames_done"] == 12
+    assert on_disk["scenario"]["name"] == "ci_corridor"
+    assert "Rotation displacement" in (run_dir / "summary.md").read_text()
+    # The truth of the reference frame itself is the identity.
+    first = next(row for row in rows if row["frame_index"] == "0")
+    assert first["reference_index"] == "0"
+    assert abs(float(first["true_angle_deg"])) < 1e-9 and abs(float(first["true_dx_px"])) < 1e-9
+
+
+def test_same_scenario_and_seed_give_identical_results(tmp_path):
+    _, first = _short_run(tmp_path, "first")
+    _, second = _short_run(tmp_path, "second")
+    strip = lambda rows: [{k: v for k, v in row.items() if k != "ms"} for row in rows]  # noqa: E731
+    assert strip(_rows(first)) == strip(_rows(second))
+    _, third = _short_run(tmp_path, "other_seed", seed=1)
+    assert strip(_rows(third)) != strip(_rows(first))
+
+
+@pytest.mark.parametrize("policy", ["previous", "first"])
+def test_reference_policies(tmp_path, policy):
+    _, run_dir = _short_run(tmp_path, policy, methods=("ecc",),
+                            overrides={"evaluation.reference": policy})
+    references = [int(row["reference_index"]) for row in _rows(run_dir)]
+    if policy == "first":
+        assert set(references) == {0}
+    else:
+        assert references == [0] + list(range(11))
+
+
+def test_interrupt_ends_cleanly_with_complete_files(tmp_path, monkeypatch):
+    real = sim.harness.ground_truth.ground_truth
+    calls = []
+
+    def interrupt_on_sixth(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 6:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_sixth)
+    metrics, run_dir = _short_run(tmp_path, record=True)
+    assert metrics["status"] == "interrupted"
+    assert "interrupted" in metrics["run"]["message"]
+    assert len(_rows(run_dir)) == 5 * len(METHODS)
+    assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
+    assert (run_dir / "recording.rrd").stat().st_size > 0
+    assert not list(run_dir.glob(".*.tmp"))
+
+
+def test_a_pushed_robot_falls_and_the_run_says_so(tmp_path, monkeypatch):
+    real_step = RobotSimulation.step
+
+    def shove(self):  # a real push: 40 N sideways on the torso from 0.3 s on
+        if self.time > 0.3:
+            torso = self.model.body("humanoid/torso").id
+            self.data.xfrc_applied[torso, 1] = 40.0
+        real_step(self)
+
+    monkeypatch.setattr(RobotSimulation, "step", shove)
+    metrics, run_dir = _short_run(tmp_path, methods=("ecc",), max_frames=90)
+    assert metrics["status"] == "fell"
+    assert metrics["run"]["fall"]["reason"]
+    assert "fell" in metrics["run"]["message"]
+    frames_done = metrics["run"]["frames_done"]
+    assert 0 < frames_done < 90
+    assert len(_rows(run_dir)) == frames_done
+
+
+def test_sensor_dropouts_are_reported_not_fatal(tmp_path, monkeypatch):
+    real_read = SR4000.read_frame
+
+    def drop_every_third(self, index):
+        frame = real_read(self, index)
+        if index % 3 == 2:
+            blank = np.zeros_like(frame.disparity8)
+            frame = type(frame)(frame.index, frame.time_s, np.zeros_like(frame.depth_m),
+                                np.zeros_like(frame.valid), blank, frame.cam_pos,
+                                frame.cam_mat, frame.true_depth_m)
+        return frame
+
+    monkeypatch.setattr(SR4000, "read_frame", drop_every_third)
+    metrics, run_dir = _short_run(tmp_path)
+    assert metrics["status"] == "complete"
+    rows = _rows(run_dir)
+    dropped = [row for row in rows if int(row["frame_index"]) % 3 == 2]
+    assert dropped and all(row["status"] != "ok" for row in dropped)
+    assert not any(row["status"].startswith("exception") for row in rows)
+    for method in METHODS:
+        assert metrics["summary"]["run"][method]["n_failed"] >= len(dropped) // len(METHODS)
+
+
+
+@pytest.mark.parametrize("name", [path.stem for path in sorted(SCENARIOS_DIR.glob("*.toml"))])
+def test_robot_walks_each_shipped_scenario_without_touching_anything(name):
+    """The whole command timeline under physics (no rendering): no fall and no body other
+    than the feet touching the scene (a wall, a desk, a stair), which FallDetector reports."""
+    from sim.harness.runner import scenario_robot, walk_until
+    from sim.harness.scenario import load_scenario
+
+    scenario = load_scenario(name)
+    robot = scenario_robot(scenario)
+    start = robot.torso_pose()[0]
+    walk_until(scenario, robot, scenario.duration_s)  # a fall is recorded, never raised
+    assert robot.fall is None, robot.fall
+    assert np.linalg.norm(robot.torso_pose()[0][:2] - start[:2]) > 1.0  # it really walked

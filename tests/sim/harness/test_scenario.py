@@ -1,0 +1,181 @@
+"""Scenario files: the shipped ones load and fit their scenes; bad files fail early and clearly."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import textwrap
+
+import numpy as np
+import pytest
+
+import sim.harness.scenario as scenario_module
+from scenarios import SCENARIOS_DIR
+from sim.harness.scenario import (ScenarioError, commanded_trajectory, list_scenarios, load_scenario,
+                          resolve_scenario_path)
+from sim.world.scenes import build_scene
+from sim.world.scenes.parts import path_distance
+from sim.world.sensor.tof_model import TOF_PRESETS
+from stabilizer.api import available_methods
+
+REQUIRED = {"corridor_straight", "office_turn", "lab_clutter", "stop_and_go", "paper_like_gait",
+            "high_noise", "ideal_sensor"}
+
+MINIMAL = 'scene = "lab"\n'
+
+
+def write(tmp_path, text, name="case.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_the_required_scenarios_are_shipped_and_load():
+    names = {p.stem for p in list_scenarios()}
+    assert REQUIRED <= names
+    for path in list_scenarios():
+        scenario = load_scenario(path)
+        assert scenario.name == path.stem and scenario.description
+        assert path.parent == SCENARIOS_DIR
+
+
+@pytest.mark.parametrize("path", list_scenarios(), ids=lambda p: p.stem)
+def test_commands_keep_the_walker_on_its_scene_path(path):
+    """An ideal walker following the commands stays within 5 cm of the path, up to its end."""
+    scenario = load_scenario(path)
+    scene = build_scene(scenario.scene, scenario.scene_seed)
+    walked = commanded_trajectory(scenario, scene.start_xy, scene.start_yaw_deg)
+    offsets = [path_distance(scene.path, np.r_[xy, xy]) for xy in walked[::10]]
+    assert max(offsets) < 0.05
+    assert np.linalg.norm(walked[-1] - scene.path[-1]) > 0.1  # stops before the path ends
+
+
+def test_defaults_are_the_documented_ones(tmp_path):
+    scenario = load_scenario(write(tmp_path, MINIMAL))
+    assert scenario.name == "case" and scenario.scene == "lab" and scenario.scene_seed == 0
+    assert scenario.duration_s == 20.0 and scenario.seed == 0
+    assert [(c.t, c.speed, c.yaw_rate) for c in scenario.commands] == [(0.0, 0.0, 0.0)]
+    assert scenario.gait.preset == "default" and scenario.gait.overrides == {}
+    assert scenario.sensor.preset == "sr4000" and scenario.sensor.fps == 30.0
+    assert scenario.sensor.tof_params() == TOF_PRESETS["sr4000"]
+    assert scenario.evaluation.reference == "cycle_start"
+    assert scenario.evaluation.methods == available_methods()
+    assert scenario.recording.enabled and scenario.recording.frame_stride == 1
+
+
+def test_a_full_file_is_read_with_overrides_and_round_trips_to_json(tmp_path):
+    text = """
+name = "mine"
+scene = "office"
+scene_seed = 3
+seed = 9
+duration_s = 12.5
+[[commands]]
+t = 0.0
+speed = 0.05
+[[commands]]
+t = 4
+speed = 0.1
+yaw_rate = -10.0
+[gait]
+preset = "paper_like"
+overrides = { step_height_m = 0.035 }
+[sensor]
+preset = "high_noise"
+fps = 20
+noise_scale = 0.5
+overrides = { mixed_pixel_weight = 0.0, motion_blur_subframes = 1, phase_wrapping = false }
+[evaluation]
+reference = "previous"
+methods = ["sift", "t2fuzzy"]
+[recording]
+enabled = false
+frame_stride = 3
+"""
+    scenario = load_scenario(write(tmp_path, text), overrides={"sensor.noise_scale": 2.0})
+    params = scenario.sensor.tof_params()
+    assert params.noise_sigma_ref_m == pytest.approx(2.0 * TOF_PRESETS["high_noise"]
+                                                     .noise_sigma_ref_m)
+    assert params.mixed_pixel_weight == 0.0 and not params.phase_wrapping
+    assert scenario.gait.params().step_height_m == 0.035
+    assert scenario.command_at(3.9).speed == 0.05 and scenario.command_at(4.0).yaw_rate == -10
+    assert scenario.evaluation.methods == ("sift", "t2fuzzy")
+    document = json.loads(json.dumps(scenario.to_dict()))
+    assert document["commands"][1] == {"t": 4.0, "speed": 0.1, "yaw_rate": -10.0}
+    assert document["sensor"]["overrides"]["motion_blur_subframes"] == 1
+    assert document["name"] == "mine" and document["recording"]["frame_stride"] == 3
+
+
+@pytest.mark.parametrize("text, key, allowed", [
+    ('scene = "lab"\nspeed = 1\n', "speed", "keys name"),
+    ('scene = "kitchen"\n', "scene", "corridor"),
+    ('scene = "lab"\nduration_s = "long"\n', "duration_s", "duration_s <="),
+    ('scene = "lab"\nduration_s = -1.0\n', "duration_s", "0 < duration_s"),
+    ('scene = "lab"\nscene_seed = 1.5\n', "scene_seed", "integer"),
+    ('scene = "lab"\nseed = true\n', "seed", "integer"),
+    ('scene = "lab"\n[sensor]\nfps = 60\n', "sensor.fps", "54"),
+    ('scene = "lab"\n[sensor]\npreset = "kinect"\n', "sensor.preset", "ideal"),
+    ('scene = "lab"\n[sensor]\ngain = 2\n', "sensor.gain", "keys preset"),
+    ('scene = "lab"\n[sensor]\noverrides = { noise = 1.0 }\n', "sensor.overrides.noise",
+     "noise_sigma_ref_m"),
+    ('scene = "lab"\n[sensor]\noverrides = { quantization_bits = 12.5 }\n',
+     "sensor.overrides.quantization_bits", "int"),
+    ('scene = "lab"\n[sensor]\noverrides = { reflectivity = 2.0 }\n', "sensor.overrides",
+     "reflectivity"),
+    ('scene = "lab"\n[sensor]\nfps = 50\noverrides = { integration_time_s = 0.025 }\n',
+     "sensor.fps", "fps <"),
+    ('scene = "lab"\n[gait]\npreset = "run"\n', "gait.preset", "paper_like"),
+    ('scene = "lab"\n[gait]\noverrides = { stride = 1.0 }\n', "gait.overrides.stride",
+     "step_period_s"),
+    ('scene = "lab"\n[evaluation]\nmethods = ["sift", "orb"]\n', "evaluation.methods",
+     "fourier_mellin"),
+    ('scene = "lab"\n[evaluation]\nmethods = []\n', "evaluation.methods", "non-empty"),
+    ('scene = "lab"\n[evaluation]\nreference = "last"\n', "evaluation.reference", "previous"),
+    ('scene = "lab"\n[recording]\nframe_stride = 0\n', "recording.frame_stride", "1 to 1000"),
+    ('scene = "lab"\n[[commands]]\nt = 1.0\n', "commands[0].t", "first at t = 0"),
+    ('scene = "lab"\n[[commands]]\nt = 0.0\n[[commands]]\nt = 0.0\n', "commands[1].t",
+     "increasing"),
+    ('scene = "lab"\nduration_s = 5.0\n[[commands]]\nt = 0.0\n[[commands]]\nt = 6.0\n',
+     "commands[1].t", "increasing"),
+    ('scene = "lab"\n[[commands]]\nt = 0.0\nspeed = 0.3\n', "commands[0].speed", "m/s"),
+    ('scene = "lab"\n[[commands]]\nt = 0.0\nspeed = -0.1\n', "commands[0].speed", "0 to 0.5"),
+    ('scene = "lab"\n[[commands]]\nt = 0.0\nyaw_rate = 60.0\n', "commands[0].yaw_rate",
+     "deg/s"),
+    ('scene = "lab"\n[[commands]]\nt = 0.0\nturn = 1.0\n', "commands[0].turn", "yaw_rate"),
+    ('scene = "lab"\ncommands = 3\n', "commands", "[[commands]]"),
+    ('scene = "lab"\nsensor = 3\n', "sensor", "[sensor]"),
+    ('scene = "lab\n', "(file)", "TOML"),
+])
+def test_bad_files_name_the_file_the_key_and_what_is_allowed(tmp_path, text, key, allowed):
+    path = write(tmp_path, text)
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(path)
+    message = str(error.value)
+    assert isinstance(error.value, ValueError)
+    assert error.value.key == key
+    assert str(path) in message and key in message and "allowed:" in message
+    assert allowed in message.split("allowed:")[1] or allowed in message
+
+
+def test_names_resolve_to_shipped_files_and_unknown_names_list_them():
+    assert resolve_scenario_path("lab_clutter") == SCENARIOS_DIR / "lab_clutter.toml"
+    with pytest.raises(FileNotFoundError, match="corridor_straight"):
+        resolve_scenario_path("no_such_scenario")
+    with pytest.raises(ScenarioError, match="sensor.fps"):
+        load_scenario("lab_clutter", overrides={"sensor.fps": 100.0})
+
+
+def test_scenario_errors_survive_pickling(tmp_path):
+    """Runs go through process pools: their errors must pickle."""
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(write(tmp_path, 'scene = "kitchen"\n'))
+    again = pickle.loads(pickle.dumps(error.value))
+    assert str(again) == str(error.value) and again.key == "scene"
+
+
+def test_the_documented_example_is_a_valid_scenario(tmp_path):
+    doc = scenario_module.__doc__
+    example = textwrap.dedent(doc.split("Example::")[1].split("Any unknown key")[0])
+    scenario = load_scenario(write(tmp_path, example))
+    assert scenario.name == "corridor_straight" and len(scenario.commands) == 2
+    assert scenario.sensor.tof_params().mixed_pixel_weight == 0.3

@@ -1,0 +1,164 @@
+"""Per-frame records, per-cycle/per-run aggregates and the ITF accumulator (DESIGN.md, Scoring)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.harness.ground_truth import GroundTruth
+from sim.harness.scoring import (AXES, RAW_STREAM, RECORD_FIELDS, ErrorStats, FrameRecord, ItfAccumulator,
+                         masked_psnr_db, summarize)
+from stabilizer.motion import Motion, apply_motion, compensate
+
+
+def _truth(angle=0.0, dx=0.0, dy=0.0) -> GroundTruth:
+    return GroundTruth(Motion(angle, dx, dy), 0.5, 1000)
+
+
+NO_TRUTH = GroundTruth(Motion.failed("no_overlap"), math.nan, 3)
+
+
+def _record(frame, method, estimate, truth, cycle=0, ms=2.0):
+    return FrameRecord.score(frame_index=frame, time_s=frame / 30, gait_cycle=cycle,
+                             reference_index=0, method=method, estimate=estimate, truth=truth,
+                             ms=ms)
+
+
+def test_record_holds_estimate_truth_and_absolute_errors():
+    record = _record(4, "t2fuzzy", Motion(1.5, -2.0, 3.0), _truth(2.0, 1.0, 3.5))
+    assert (record.est_angle_deg, record.est_dx_px, record.est_dy_px) == (1.5, -2.0, 3.0)
+    assert (record.true_angle_deg, record.true_dx_px, record.true_dy_px) == (2.0, 1.0, 3.5)
+    assert (record.err_angle_deg, record.err_dx_px, record.err_dy_px) == (0.5, 3.0, 0.5)
+    assert record.scored and record.truth_residual_px == 0.5 and record.truth_points == 1000
+    assert [record.error_of(axis) for axis in AXES] == [0.5, 3.0, 0.5]
+    assert record.frame_index == 4 and record.time_s == pytest.approx(4 / 30)
+    assert set(RECORD_FIELDS) >= {"frame_index", "gait_cycle", "reference_index", "method",
+                                  "status", "ms", "truth_residual_px"}
+
+
+def test_rotation_error_wraps_around():
+    record = _record(0, "m", Motion(179.0, 0, 0), _truth(-179.0))
+    assert record.err_angle_deg == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("estimate, truth", [
+    (Motion.failed("no_structure"), _truth()),
+    (Motion(1.0, 1.0, 1.0), NO_TRUTH),
+])
+def test_missing_estimate_or_truth_gives_nan_errors(estimate, truth):
+    record = _record(0, "m", estimate, truth)
+    assert not record.scored
+    assert all(math.isnan(record.error_of(axis)) for axis in AXES)
+
+
+def test_error_stats_are_mean_population_variance_and_max():
+    stats = ErrorStats.of([1.0, 2.0, 3.0, 6.0])
+    assert (stats.mean, stats.variance, stats.max, stats.n) == (3.0, 3.5, 6.0, 4)
+    empty = ErrorStats.of([])
+    assert empty.n == 0 and math.isnan(empty.mean) and math.isnan(empty.max)
+
+
+def test_summary_per_run_and_per_cycle():
+    records = [
+        _record(0, "a", Motion(1.0, 0.0, 0.0), _truth(), cycle=0, ms=1.0),
+        _record(1, "a", Motion(3.0, 2.0, 0.0), _truth(), cycle=0, ms=3.0),
+        _record(2, "a", Motion.failed("no_structure"), _truth(), cycle=1, ms=5.0),
+        _record(3, "a", Motion(0.0, 0.0, 4.0), NO_TRUTH, cycle=1, ms=2.0),
+        _record(0, "b", Motion(0.5, 0.0, 0.0), _truth(), cycle=0, ms=10.0),
+    ]
+    summary = summarize(records)
+    assert summary.methods == ("a", "b") and summary.n_frames == 4
+    a = summary.run["a"]
+    assert (a.n_frames, a.n_failed, a.n_truth_failed, a.n_scored) == (4, 1, 1, 2)
+    assert a.failure_rate == 0.25 and a.failures == {"no_structure": 1}
+    assert (a.errors["rotation"].mean, a.errors["rotation"].variance) == (2.0, 1.0)
+    assert a.errors["x"].max == 2.0 and a.errors["y"].n == 2
+    assert (a.ms_mean, a.ms_median) == (2.75, 2.5)
+    assert sorted(summary.cycles) == [0, 1]
+    assert summary.cycles[0]["a"].n_scored == 2 and "b" not in summary.cycles[1]
+    assert summary.cycles[1]["a"].n_scored == 0
+    assert math.isnan(summary.cycles[1]["a"].errors["x"].mean)
+    assert math.isnan(a.itf_db)
+    assert summary.to_dict()["run"]["a"]["errors"]["rotation"]["mean"] == 2.0
+
+
+def test_masked_psnr_uses_pixels_valid_in_both():
+    first = np.array([[10, 20], [0, 40]], np.uint8)
+    second = np.array([[12, 0], [30, 40]], np.uint8)
+    # Valid in both: (0, 0) differs by 2, (1, 1) equal -> MSE 2.
+    assert masked_psnr_db(first, second) == pytest.approx(10 * math.log10(255 ** 2 / 2.0))
+    assert masked_psnr_db(first, first) == 100.0
+    assert math.isnan(masked_psnr_db(first, np.zeros_like(first)))
+
+
+def test_itf_is_higher_for_a_well_compensated_stream():
+    rng = np.random.default_rng(1)
+    reference = np.zeros((144, 176), np.uint8)
+    reference[30:110, 40:140] = rng.integers(1, 256, (80, 100), dtype=np.uint8)
+    itf = ItfAccumulator()
+    for index, shift in enumerate([0.0, 3.0, -4.0, 5.0]):
+        motion = Motion(2.0 * shift, shift, -shift)
+        current = apply_motion(reference, motion)
+        itf.add(RAW_STREAM, current, gait_cycle=0, reference_index=0)
+        itf.add("perfect", compensate(current, motion), gait_cycle=0, reference_index=0)
+    assert itf.n_pairs(RAW_STREAM) == 3 and itf.n_pairs("perfect") == 3
+    assert itf.mean_db("perfect") > itf.mean_db(RAW_STREAM) + 10
+    assert itf.streams() == (RAW_STREAM, "perfect")
+
+
+def test_itf_skips_pairs_across_a_reference_change_and_groups_by_cycle():
+    itf = ItfAccumulator()
+    image = np.full((8, 8), 100, np.uint8)
+    noisy = image.copy()
+    noisy[0, 0] = 110
+    assert math.isnan(itf.add("m", image, gait_cycle=0, reference_index=0))
+    assert itf.add("m", image, gait_cycle=0, reference_index=0) == 100.0
+    assert math.isnan(itf.add("m", image, gait_cycle=1, reference_index=2))  # new reference
+    psnr = itf.add("m", noisy, gait_cycle=1, reference_index=2)
+    assert psnr == pytest.approx(10 * math.log10(255 ** 2 / (100 / 64)))
+    assert itf.n_pairs("m") == 2
+    assert itf.mean_db("m", 0) == 100.0 and itf.mean_db("m", 1) == pytest.approx(psnr)
+    assert math.isnan(itf.mean_db("m", 5)) and math.isnan(itf.mean_db("unknown"))
+
+
+def test_summary_carries_itf_of_each_method_and_raw():
+    itf = ItfAccumulator()
+    image = np.full((8, 8), 100, np.uint8)
+    for _ in range(2):
+        itf.add("a", image, gait_cycle=0, reference_index=0)
+        itf.add(RAW_STREAM, image, gait_cycle=0, reference_index=0)
+    summary = summarize([_record(0, "a", Motion(0, 0, 0), _truth())], itf)
+    assert summary.run["a"].itf_db == 100.0 and summary.run["a"].itf_raw_db == 100.0
+    assert summary.cycles[0]["a"].itf_db == 100.0
+
+
+def test_bad_itf_input_is_rejected():
+    with pytest.raises(ValueError, match="2-D"):
+        ItfAccumulator().add("m", np.zeros(5), gait_cycle=0, reference_index=0)
+    with pytest.raises(ValueError, match="same shape and dtype"):
+        masked_psnr_db(np.zeros((2, 2)), np.zeros((3, 3)))
+
+
+def test_scoring_ray_cast_frames_with_the_truth_as_estimate():
+    """The runner's loop in miniature: truth, record, ITF of compensated and raw frames."""
+    from sim.harness.ground_truth import ground_truth
+    from tests.sim.harness.scene_frames import box_world, camera_matrix, render_frame
+
+    world = box_world()
+    frames = [render_frame(world, [0.0, 0.0, 0.0], camera_matrix(roll_deg=2.0 * i,
+                                                                 yaw_deg=0.5 * i), i, i / 30)
+              for i in range(6)]
+    itf = ItfAccumulator()
+    records = []
+    for frame in frames:
+        truth = ground_truth(frames[0], frame)
+        records.append(FrameRecord.score(frame_index=frame.index, time_s=frame.time_s,
+                                         gait_cycle=0, reference_index=0, method="oracle",
+                                         estimate=truth.motion, truth=truth, ms=0.0))
+        itf.add(RAW_STREAM, frame.disparity8, gait_cycle=0, reference_index=0)
+        itf.add("oracle", compensate(frame.disparity8, truth.motion), gait_cycle=0,
+                reference_index=0)
+    score = summarize(records, itf).run["oracle"]
+    assert score.n_scored == 6 and score.failure_rate == 0.0
+    assert all(score.errors[axis].max == 0.0 for axis in AXES)
+    assert score.itf_db > score.itf_raw_db + 3

@@ -1,0 +1,307 @@
+"""Sweeps: file validation, expansion, resumable parallel runs (spawn pool and Ray), tables.
+
+The runs here use ``fake_run``: a cheap, picklable stand-in for ``sim.harness.runner.run`` that writes a
+run folder with the real writer (``sim.harness.report.write_run_outputs``) from made-up frame records
+whose errors grow with the noise level, so aggregation reads the real metrics.json layout.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from sim.harness.report import METRICS_JSON, read_metrics, write_run_outputs
+from sim.harness.runner import RunConfig
+from sim.harness.scenario import SCENARIOS_DIR
+from sim.harness.scoring import FrameRecord, summarize
+from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, SweepError,
+                       completed_metrics, expand_sweep, load_sweep, plan_sweep, run_sweep,
+                       sweep_from_dict)
+
+EXAMPLE_SWEEP = SCENARIOS_DIR / "sweeps" / "noise_sweep.toml"
+METHODS = ("t2fuzzy", "sift")
+#: Per-method error slope of the fake runs: |error| = slope * noise level + seed / 100.
+SLOPES = {"t2fuzzy": 1.0, "sift": 2.0}
+CALLS_LOG = "fake_calls.txt"
+#: Set by a test in the parent process; a spawned (not forked) worker sees this default.
+PARENT_MARK = "module default"
+
+
+def small_spec(**changes):
+    raw = {"name": "tiny", "scenarios": ["corridor_straight", "lab_clutter"], "seeds": [0, 1],
+           "noise_levels": [0.5, 2.0], "methods": list(METHODS), "max_frames": 3}
+    return sweep_from_dict({**raw, **changes}, source="tiny.toml")
+
+
+def fake_run(config: RunConfig) -> dict:
+    """Stand-in for sim.harness.runner.run: 3 frames per method, errors from the noise level."""
+    run_dir = Path(config.out_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    with open(run_dir / CALLS_LOG, "a", encoding="utf-8") as log:
+        log.write(f"{os.getpid()}\n")
+    noise = config.overrides[DEFAULT_NOISE_KEY]
+    records = []
+    for frame in range(3):
+        for method in config.methods:
+            error = SLOPES[method] * noise + config.seed / 100
+            failed = method == "sift" and frame == 0
+            records.append(FrameRecord(
+                frame, frame / 30, 0, 0, method, "too_few_matches" if failed else "ok", 1.5,
+                *((math.nan,) * 3 if failed else (error, error, error)), 0.0, 0.0, 0.0, "ok",
+                0.1, 100, *((math.nan,) * 3 if failed else (error, error, error))))
+    write_run_outputs(run_dir, scenario={"name": Path(config.scenario).stem,
+                                         "seed": config.seed},
+                      records=records, summary=summarize(records),
+                      meta={"seed": config.seed, "parent_mark": PARENT_MARK}, status="complete",
+                      plots=False)
+    return read_metrics(run_dir)
+
+
+def failing_run(config: RunConfig) -> dict:
+    """Like fake_run, but the runs of seed 1 raise."""
+    if config.seed == 1:
+        raise RuntimeError(f"simulated crash in {Path(config.out_dir).name}")
+    return fake_run(config)
+
+
+def calls(run_dir) -> int:
+    path = Path(run_dir) / CALLS_LOG
+    return len(path.read_text().splitlines()) if path.exists() else 0
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+# ----------------------------------------------------------------------------- expansion
+def test_expansion_is_the_full_product_in_file_order(tmp_path):
+    spec = small_spec()
+    configs = expand_sweep(spec, tmp_path)
+    assert len(configs) == spec.n_runs == 8
+    names = [Path(config.out_dir).name for config in configs]
+    assert names[:3] == ["corridor_straight__seed0__noise0.5",
+                         "corridor_straight__seed0__noise2.0",
+                         "corridor_straight__seed1__noise0.5"]
+    assert names[-1] == "lab_clutter__seed1__noise2.0"
+    assert len(set(names)) == len(names)
+    first = configs[0]
+    assert Path(first.out_dir).parent == tmp_path / "runs"
+    assert (first.scenario, first.seed, first.methods, first.max_frames, first.record) == (
+        "corridor_straight", 0, METHODS, 3, False)
+    assert dict(first.overrides) == {DEFAULT_NOISE_KEY: 0.5}
+    assert expand_sweep(small_spec(), tmp_path) == configs  # deterministic
+
+
+def test_expansion_applies_the_noise_key_and_shared_overrides(tmp_path):
+    spec = small_spec(noise_key="sensor.fps", noise_levels=[10, 20],
+                      overrides={"evaluation.reference": "previous"})
+    overrides = [dict(config.overrides) for config in expand_sweep(spec, tmp_path)]
+    assert overrides[:2] == [{"evaluation.reference": "previous", "sensor.fps": 10.0},
+                             {"evaluation.reference": "previous", "sensor.fps": 20.0}]
+
+
+def test_example_sweep_file_loads():
+    spec = load_sweep(EXAMPLE_SWEEP)
+    assert spec.name == "noise_sweep" and spec.noise_key == DEFAULT_NOISE_KEY
+    assert spec.n_runs == len(spec.scenarios) * len(spec.seeds) * len(spec.noise_levels) > 1
+
+
+def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path):
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "walk.toml").write_text(
+        (SCENARIOS_DIR / "corridor_straight.toml").read_text())
+    sweep_file = tmp_path / "mine" / "my sweep.toml"
+    sweep_file.write_text('scenarios = ["walk.toml"]\nseeds = [3]\nnoise_levels = [1]\n')
+    spec = load_sweep(sweep_file)
+    assert spec.name == "my_sweep"
+    assert spec.scenarios == (str((tmp_path / "mine" / "walk.toml").resolve()),)
+    assert [Path(c.out_dir).name for c in expand_sweep(spec, tmp_path)] == [
+        "walk__seed3__noise1.0"]
+
+
+# ----------------------------------------------------------------------------- validation
+@pytest.mark.parametrize("changes, key, allowed", [
+    ({"seeds": [0], "sedes": [1]}, "sedes", "keys name"),
+    ({"scenarios": None}, "scenarios", "non-empty list"),
+    ({"scenarios": []}, "scenarios", "non-empty list"),
+    ({"scenarios": ["no_such_scenario"]}, "scenarios[0]", "shipped scenario names"),
+    ({"scenarios": ["corridor_straight", "corridor_straight"]}, "scenarios[1]", "distinct"),
+    ({"seeds": []}, "seeds", "integers >= 0"),
+    ({"seeds": [0, -1]}, "seeds[1]", "integers >= 0"),
+    ({"seeds": [True]}, "seeds[0]", "integers >= 0"),
+    ({"seeds": [1, 1]}, "seeds[1]", "distinct"),
+    ({"seeds": [1.5]}, "seeds[0]", "integers >= 0"),
+    ({"noise_levels": ["high"]}, "noise_levels[0]", "finite numbers"),
+    ({"noise_levels": [float("nan")]}, "noise_levels[0]", "finite numbers"),
+    ({"noise_levels": [1, 1.0]}, "noise_levels[1]", "distinct"),
+    ({"noise_levels": [1.0, 200.0]}, "noise_levels[1]", "every scenario of the sweep accepts"),
+    ({"noise_key": "sensor..noise"}, "noise_key", "dotted scenario key"),
+    ({"noise_key": "sensor.nosie_scale"}, "noise_levels[0]", "every scenario"),
+    ({"methods": ["surf"]}, "methods[0]", "t2fuzzy"),
+    ({"methods": []}, "methods", "t2fuzzy"),
+    ({"max_frames": 0}, "max_frames", "integer >= 1"),
+    ({"max_frames": 2.5}, "max_frames", "integer >= 1"),
+    ({"record": "yes"}, "record", "true or false"),
+    ({"name": "a/b"}, "name", "letters, digits"),
+    ({"overrides": {"seed": 3}}, "overrides", "not seed"),
+    ({"overrides": {"sensor.noise_scale": 3}}, "overrides", "not the noise key"),
+    ({"overrides": {"sensor.fsp": 3}}, "overrides", "every scenario"),
+    ({"overrides": []}, "overrides", "a table"),
+    ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
+])
+def test_invalid_sweeps_name_the_file_the_key_and_what_is_allowed(changes, key, allowed):
+    with pytest.raises(SweepError) as info:
+        small_spec(**changes)
+    message = str(info.value)
+    assert isinstance(info.value, ValueError)
+    assert message.startswith(f"tiny.toml: {key}: "), message
+    assert allowed in message.split("; allowed: ")[-1], message
+
+
+def test_missing_required_key_and_bad_toml_are_named(tmp_path):
+    with pytest.raises(SweepError, match=r"<dict>: noise_levels: missing"):
+        sweep_from_dict({"scenarios": ["corridor_straight"], "seeds": [0]})
+    broken = tmp_path / "broken.toml"
+    broken.write_text("scenarios = [\n")
+    with pytest.raises(SweepError, match="broken.toml: \\(file\\): not valid TOML"):
+        load_sweep(broken)
+    with pytest.raises(FileNotFoundError, match="no sweep file"):
+        load_sweep(tmp_path / "absent.toml")
+
+
+def test_two_scenario_files_with_one_name_are_refused(tmp_path):
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "walk.toml").write_text(
+            (SCENARIOS_DIR / "corridor_straight.toml").read_text())
+    spec = sweep_from_dict({"scenarios": ["a/walk.toml", "b/walk.toml"], "seeds": [0],
+                            "noise_levels": [1]}, base_dir=tmp_path)
+    with pytest.raises(SweepError, match="share the name"):
+        expand_sweep(spec, tmp_path)
+
+
+def test_bad_backend_and_workers_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="accepted: local, ray"):
+        run_sweep(small_spec(), tmp_path, backend="dask", run_fn=fake_run)
+    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+        run_sweep(small_spec(), tmp_path, workers=0, run_fn=fake_run)
+
+
+def test_missing_ray_names_the_extra(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[cluster\]"'):
+        run_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path, backend="ray",
+                  run_fn=fake_run)
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+# ----------------------------------------------------------------------------- running
+@pytest.mark.parametrize("status, done", [("complete", True), ("fell", True),
+                                          ("interrupted", False), ("error", False)])
+def test_only_complete_or_fallen_runs_count_as_done(tmp_path, status, done):
+    config = expand_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path)[0]
+    assert completed_metrics(config.out_dir) is None  # no metrics.json yet
+    fake_run(config)
+    metrics = Path(config.out_dir) / METRICS_JSON
+    metrics.write_text(metrics.read_text().replace('"status": "complete"',
+                                                   f'"status": "{status}"'))
+    assert (completed_metrics(config.out_dir) is not None) == done
+    metrics.write_text(metrics.read_text()[:40])  # a torn or foreign file: run again
+    assert completed_metrics(config.out_dir) is None
+
+
+def check_table(out_dir: Path, spec, expected_status: dict[str, str]) -> list[dict]:
+    """sweep.csv/md and one PNG per scenario exist; rows match what fake_run wrote."""
+    rows = read_csv(out_dir / "sweep.csv")
+    assert tuple(rows[0]) == COLUMNS
+    assert (out_dir / "sweep.md").read_text().count("\n| ") == len(rows) + 1
+    for scenario in ("corridor_straight", "lab_clutter"):
+        png = out_dir / f"error_vs_noise__{scenario}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for row in rows:
+        assert row["run_status"] == expected_status[row["run"]], row
+        if row["run_status"] != "complete":
+            continue
+        noise, seed = float(row["noise_level"]), int(row["seed"])
+        expected = SLOPES[row["method"]] * noise + seed / 100
+        for column in ERROR_COLUMNS.values():
+            assert float(row[column]) == pytest.approx(expected)
+        assert float(row["failure_rate"]) == pytest.approx(1 / 3 if row["method"] == "sift"
+                                                           else 0.0)
+        assert float(row["ms_per_frame"]) == 1.5
+    return rows
+
+
+def test_local_pool_runs_everything_then_resumes_only_the_unfinished(tmp_path):
+    spec = small_spec()
+    plan = plan_sweep(spec, tmp_path)
+    result = run_sweep(spec, tmp_path, workers=2, run_fn=fake_run)
+    assert not result.failed and not any(outcome.skipped for outcome in result.outcomes)
+    assert [calls(r.config.out_dir) for r in plan] == [1] * 8
+    rows = check_table(tmp_path, spec, {r.name: "complete" for r in plan})
+    assert len(rows) == 8 * len(METHODS)
+    assert [row["run"] for row in rows[::2]] == [r.name for r in plan]  # plan order
+
+    again = run_sweep(spec, tmp_path, workers=2, run_fn=fake_run)
+    assert all(outcome.skipped for outcome in again.outcomes)
+    assert [calls(r.config.out_dir) for r in plan] == [1] * 8
+
+    interrupted, lost = Path(plan[1].config.out_dir), Path(plan[6].config.out_dir)
+    metrics = interrupted / METRICS_JSON
+    metrics.write_text(metrics.read_text().replace('"status": "complete"',
+                                                   '"status": "interrupted"'))
+    (lost / METRICS_JSON).unlink()
+    resumed = run_sweep(spec, tmp_path, workers=2, run_fn=fake_run)
+    assert [outcome.run.name for outcome in resumed.outcomes if not outcome.skipped] == [
+        plan[1].name, plan[6].name]
+    assert [calls(r.config.out_dir) for r in plan] == [1, 2, 1, 1, 1, 1, 2, 1]
+    check_table(tmp_path, spec, {r.name: "complete" for r in plan})
+
+
+def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch):
+    monkeypatch.setattr(__import__(__name__, fromlist=["_"]), "PARENT_MARK", "set in parent")
+    result = run_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path, workers=2,
+                       run_fn=fake_run)
+    for outcome in result.outcomes:
+        assert outcome.metrics["run"]["parent_mark"] == "module default"  # not inherited
+        assert calls(outcome.run.config.out_dir) == 1
+        pid = int((Path(outcome.run.config.out_dir) / CALLS_LOG).read_text())
+        assert pid != os.getpid()
+
+
+def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
+    spec = small_spec()
+    result = run_sweep(spec, tmp_path, workers=2, run_fn=failing_run)
+    failed = {outcome.run.name for outcome in result.failed}
+    assert failed == {r.name for r in plan_sweep(spec, tmp_path) if r.seed == 1}
+    assert all("RuntimeError: simulated crash" in o.error for o in result.failed)
+    expected = {r.name: ("complete" if r.seed == 0 else
+                         f"error: RuntimeError: simulated crash in {r.name}")
+                for r in plan_sweep(spec, tmp_path)}
+    rows = check_table(tmp_path, spec, expected)
+    assert len(rows) == 4 * len(METHODS) + 4  # failed runs: one row each, no methods
+    assert "4 failed" in result.markdown
+
+
+def test_ray_backend_on_a_local_instance(tmp_path):
+    ray = pytest.importorskip("ray")
+    spec = small_spec(seeds=[0, 1], noise_levels=[1.0])
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        result = run_sweep(spec, tmp_path, backend="ray", run_fn=failing_run)
+        assert {o.run.name for o in result.failed} == {
+            "corridor_straight__seed1__noise1.0", "lab_clutter__seed1__noise1.0"}
+        resumed = run_sweep(spec, tmp_path, backend="ray", workers=1, run_fn=fake_run)
+    finally:
+        ray.shutdown()
+    assert not resumed.failed
+    assert sorted(o.run.name for o in resumed.outcomes if not o.skipped) == sorted(
+        o.run.name for o in result.failed)
+    plan = plan_sweep(spec, tmp_path)
+    assert [calls(r.config.out_dir) for r in plan] == [1, 1, 1, 1]
+    check_table(tmp_path, spec, {r.name: "complete" for r in plan})

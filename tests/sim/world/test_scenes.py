@@ -1,0 +1,122 @@
+"""Indoor scenes: they compile, are reproducible from the seed, leave the robot's lane free and
+give the sensor objects at several depths."""
+
+from __future__ import annotations
+
+import math
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from sim.world.scenes import SCENES, build_scene  # noqa: E402
+from sim.world.scenes.parts import lane_intrusions, polyline  # noqa: E402
+from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
+from sim.world.sensor.tof_model import TOF_PRESETS  # noqa: E402
+
+SEEDS = (0, 1, 2, 3)
+
+
+def _with_robot_proxy(scene):
+    """The scene plus a free box as wide as the lane and as tall as the robot (0.72 m)."""
+    half = scene.clear_half_width_m - 0.01
+    proxy = scene.arena.worldbody.add("body", name="proxy")
+    proxy.add("freejoint")
+    proxy.add("geom", name="proxy", type="box", size=[0.12, half, 0.35], pos=[0, 0, 0.37])
+    return scene.compile()
+
+
+def _lane_contacts(scene) -> set[str]:
+    """Geoms that a lane-wide box slid along the path touches (MuJoCo's collision detection)."""
+    model = _with_robot_proxy(scene)
+    data = mujoco.MjData(model)
+    proxy = model.geom("proxy").id
+    path = scene.path
+    headings = np.arctan2(*np.diff(path, axis=0).T[::-1])
+    touching = set()
+    for xy, heading in zip(path[:-1], headings):
+        data.qpos[:3] = [xy[0], xy[1], 0.0]
+        data.qpos[3:7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+        mujoco.mj_forward(model, data)
+        touching |= {model.geom(int(g)).name for c in data.contact[:data.ncon]
+                     for g in (c.geom1, c.geom2) if proxy in (c.geom1, c.geom2)}
+    return touching - {"proxy"}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("seed", SEEDS)
+def test_lane_around_the_path_has_no_obstacle(name, seed):
+    assert not _lane_contacts(build_scene(name, seed))
+
+
+def test_lane_checks_find_an_obstacle_on_the_path():
+    scene = build_scene("corridor", 0)
+    scene.arena.worldbody.add("geom", name="in_the_way", type="box", size=[0.1, 0.1, 0.1],
+                              pos=[1.5, 0.2, 0.1])
+    assert lane_intrusions(scene.compile(), scene.path) == ["in_the_way"]
+    assert _lane_contacts(scene) == {"in_the_way"}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_same_seed_same_scene_other_seed_other_scene(name):
+    first, again, other = build_scene(name, 5), build_scene(name, 5), build_scene(name, 6)
+    assert first.arena.to_xml_string() == again.arena.to_xml_string()
+    assert first.arena.to_xml_string() != other.arena.to_xml_string()
+    np.testing.assert_array_equal(first.path, again.path)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_sensor_sees_objects_at_several_depths(name):
+    """From the start pose, surfaces fill at least three 1-m depth bins between 0.5 and 5 m."""
+    scene = build_scene(name, 0)
+    camera = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg)
+    model = scene.compile()
+    data = mujoco.MjData(model)
+    with SR4000(model, camera, TOF_PRESETS["ideal"]) as sensor:
+        frame = sensor.capture_still(data)
+    depth = frame.depth_m[frame.valid]
+    counts, _ = np.histogram(depth, bins=[0.5, 1.5, 2.5, 3.5, 4.5, 5.0])
+    assert (counts > 0.02 * depth.size).sum() >= 3, counts
+    assert frame.valid.mean() > 0.8  # lit, closed scenes: little sky
+
+
+def test_scene_fields_and_start_pose():
+    scene = build_scene("office", 0)
+    assert scene.path.ndim == 2 and scene.path.shape[1] == 2 and len(scene.path) > 10
+    np.testing.assert_array_equal(scene.start_xy, scene.path[0])
+    assert scene.start_yaw_deg == pytest.approx(0.0)
+    end_heading = np.degrees(np.arctan2(*(scene.path[-1] - scene.path[-2])[::-1]))
+    assert end_heading == pytest.approx(90.0, abs=1.0)  # the office walk turns left
+
+
+def test_polyline_lengths():
+    path = polyline(("line", 1.0), ("arc", 0.5, 90), ("line", 0.5))
+    assert np.linalg.norm(np.diff(path, axis=0), axis=1).sum() == pytest.approx(
+        1.5 + math.pi / 4, rel=1e-3)
+    np.testing.assert_allclose(path[-1], [1.5, 1.0], atol=1e-9)
+    with pytest.raises(ValueError, match="line, arc"):
+        polyline(("zigzag", 1.0))
+
+
+def test_bad_scene_name_or_seed_is_a_value_error():
+    with pytest.raises(ValueError, match="corridor"):
+        build_scene("kitchen", 0)
+    with pytest.raises(ValueError, match="seed"):
+        build_scene("lab", -1)
+
+
+def test_robot_attaches_and_its_camera_is_an_sr4000():
+    from sim.world import assembly, humanoid
+
+    scene = build_scene("corridor", 0)
+    model = assembly.compile_world(assembly.assemble(scene.arena, scene.start_xy,
+                                                     scene.start_yaw_deg))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    with SR4000(model, humanoid.CAMERA_NAME, TOF_PRESETS["ideal"]) as sensor:
+        frame = sensor.capture_still(data)
+    assert frame.valid.mean() > 0.8
+    assert 0.4 < frame.cam_pos[2] < 0.7

@@ -1,0 +1,247 @@
+"""The humanoid walks under physics: issue 3's acceptance tests, and the controller's parts."""
+
+import itertools
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from sim.world.humanoid import LEG_JOINTS, MODEL_NAME
+from sim.world.walking import GAIT_PRESETS, FallEvent, GaitParams, RobotSimulation
+from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
+from sim.world.walking.footsteps import FootstepPlanner, Pose2D
+from sim.world.walking.gait import resolve_gait
+from sim.world.walking.leg_ik import LegIK, rot_x, rot_y, rot_z
+from sim.world.walking.preview import ZmpPreviewController
+from sim.world.assembly import assemble, compile_world, free_joint_qpos_address
+
+TIMEOUT_S = 60.0
+
+
+@pytest.fixture(scope="module")
+def model():
+    return compile_world(assemble())
+
+
+def heading_change(sim, start_heading):
+    return math.degrees(math.remainder(sim.torso_pose()[1] - start_heading, 2 * math.pi))
+
+
+def walk_turn_stop(sim):
+    """Issue 3's run: stand, walk 3 m forward, turn 90 deg in place, stop and stand 2 s.
+
+    Returns the per-period log of the forward walk (time, camera matrix, foot contacts) and
+    the times each phase ended (None if it timed out).
+    """
+    sim.run(1.0)
+    start, _ = sim.torso_pose()
+    sim.command(forward_speed_mps=sim.gait.max_forward_speed_mps)
+    log = []
+    while sim.fall is None and sim.time < TIMEOUT_S:
+        sim.step()
+        log.append((sim.time, sim.camera_pose()[1], sim.foot_contacts()))
+        if np.linalg.norm(sim.torso_pose()[0][:2] - start[:2]) >= 3.0:
+            break
+    walked_at = sim.time if sim.fall is None and sim.time < TIMEOUT_S else None
+    sim.command(yaw_rate_dps=sim.gait.max_yaw_rate_dps)
+    heading = sim.torso_pose()[1]
+    turn_deadline = sim.time + 20.0
+    while sim.fall is None and sim.time < turn_deadline and heading_change(sim, heading) < 90.0:
+        sim.step()
+    turned_at = sim.time if sim.fall is None and sim.time < turn_deadline else None
+    sim.command(0.0, 0.0)
+    sim.run(2.0)
+    return log, walked_at, turned_at
+
+
+@pytest.fixture(scope="module", params=["default", "paper_like"])
+def walk_run(request, model):
+    sim = RobotSimulation(model, gait=request.param, seed=0)
+    log, walked_at, turned_at = walk_turn_stop(sim)
+    return sim, log, walked_at, turned_at
+
+
+def test_walks_3m_turns_90deg_and_stands_without_falling(walk_run):
+    sim, _, walked_at, turned_at = walk_run
+    assert sim.fall is None, sim.fall
+    assert walked_at is not None, "did not cover 3 m in time"
+    assert turned_at is not None, "did not turn 90 deg in time"
+    # Standing still at the end: both feet down, torso up and not moving.
+    assert sim.foot_contacts() == (True, True)
+    assert sim.torso_pose()[0][2] > 0.3
+    assert np.abs(sim.data.qvel).max() < 0.2
+
+
+def test_foot_contacts_alternate(walk_run):
+    _, log, _, _ = walk_run
+    single_support = [contacts for _, _, contacts in log if contacts in ((True, False), (False, True))]
+    phases = [c for i, c in enumerate(single_support) if i == 0 or c != single_support[i - 1]]
+    assert len(phases) >= 40                    # about one per step over 3 m
+    steps = len(log) * 0.01 / 0.5
+    assert len(phases) >= 0.8 * steps
+    assert all(a != b for a, b in itertools.pairwise(phases))
+
+
+def dominant_frequency_hz(signal, dt):
+    signal = signal - signal.mean()
+    power = np.abs(np.fft.rfft(signal * np.hanning(len(signal)))) ** 2
+    freqs = np.fft.rfftfreq(len(signal), dt)
+    return freqs[1 + np.argmax(power[1:])]
+
+
+def test_camera_roll_pitch_yaw_oscillate_with_the_steps(walk_run):
+    sim, log, _, _ = walk_run
+    steady = [(t, mat) for t, mat, _ in log if t > 4.0]       # after the first steps
+    times = np.array([t for t, _ in steady])
+    mats = np.array([m for _, m in steady])
+    mean_mat = mats.mean(axis=0)
+    u, _, vt = np.linalg.svd(mean_mat)
+    angles = relative_camera_angles(np.broadcast_to(u @ vt, mats.shape), mats)
+    step_hz = 1.0 / sim.gait.step_period_s
+    for axis, name in enumerate(("pitch", "yaw", "roll")):
+        signal = angles[:, axis]
+        assert signal.std() > 0.3, f"camera {name} barely moves"
+        peak = dominant_frequency_hz(signal, times[1] - times[0])
+        # The step frequency, or the gait cycle's (half of it) for the side-to-side sway.
+        assert min(abs(peak - step_hz), abs(peak - step_hz / 2)) < 0.1 * step_hz / 2, (name, peak)
+
+
+def test_paper_like_camera_swing_reaches_the_papers_magnitudes():
+    """Kang et al. 2009: about +-40 px in x, 2-32 px in y, +-12 deg rotation over a cycle."""
+    swing = measure_camera_swing("paper_like", walk_s=8.0)
+    assert not swing["fell"]
+    assert min(-swing["x_min_px"], swing["x_max_px"]) > 30
+    assert swing["y_max_px"] - swing["y_min_px"] > 25
+    assert min(-swing["roll_min_deg"], swing["roll_max_deg"]) > 8
+
+
+def test_same_seed_same_trajectory_bit_for_bit(model):
+    def trajectory(seed):
+        sim = RobotSimulation(model, seed=seed)
+        sim.command(0.1, 10.0)
+        states = []
+        for _ in range(200):
+            sim.step()
+            states.append(np.concatenate([sim.data.qpos, sim.data.qvel]))
+        return np.array(states)
+
+    first = trajectory(7)
+    assert np.array_equal(first, trajectory(7))
+    assert not np.array_equal(first, trajectory(8))
+
+
+def test_a_shove_is_reported_as_a_fall_not_raised(model):
+    sim = RobotSimulation(model)
+    torso = model.body(f"{MODEL_NAME}/torso").id
+    sim.data.xfrc_applied[torso, 1] = 120.0                  # 12 G sideways
+    sim.run(0.3)
+    sim.data.xfrc_applied[torso] = 0.0
+    sim.run(2.0)
+    assert isinstance(sim.fall, FallEvent)
+    assert sim.fall.reason in ("torso_low", "torso_tilt") or sim.fall.reason.startswith("contact:")
+    assert 0.0 < sim.fall.time_s <= sim.time
+
+
+def test_standing_is_not_a_fall(model):
+    sim = RobotSimulation(model)
+    sim.run(3.0)
+    assert sim.fall is None
+    assert sim.gait_cycle == 0
+
+
+def test_gait_cycle_counts_every_other_step(model):
+    sim = RobotSimulation(model)
+    sim.command(0.1)
+    seen = []
+    for _ in range(int(3.0 / sim.control_period_s)):
+        sim.step()
+        seen.append(sim.gait_cycle)
+    assert seen == sorted(seen)
+    # The first step has 0.5 s of start-up double support (0.9 s long), then 0.5 s steps:
+    # steps start at 0, 0.9, 1.4, 1.9, 2.4, 2.9 s, so cycles 1, 2, 3 start at 0, 1.4, 2.4 s.
+    assert seen[-1] == 3
+
+
+def test_camera_name_and_pose(model):
+    sim = RobotSimulation(model)
+    assert sim.camera_name == f"{MODEL_NAME}/sr4000"
+    assert model.camera(sim.camera_name).id == sim.camera_id
+    pos, mat = sim.camera_pose()
+    assert pos.shape == (3,) and mat.shape == (3, 3)
+    assert mat @ mat.T == pytest.approx(np.eye(3), abs=1e-9)
+
+
+def test_bad_commands_and_params_are_value_errors(model):
+    sim = RobotSimulation(model)
+    with pytest.raises(ValueError, match="finite"):
+        sim.command(float("nan"), 0.0)
+    with pytest.raises(ValueError, match="duration_s"):
+        sim.run(-1.0)
+    with pytest.raises(ValueError, match="unknown gait"):
+        RobotSimulation(model, gait="moonwalk")
+    with pytest.raises(ValueError, match="step_period_s"):
+        GaitParams(step_period_s=0.0)
+    with pytest.raises(ValueError, match="double_support_ratio"):
+        GaitParams(double_support_ratio=1.0)
+    assert resolve_gait("paper_like") is GAIT_PRESETS["paper_like"]
+
+
+# -- controller parts ---------------------------------------------------------------------
+
+def test_leg_ik_matches_mujoco_forward_kinematics(model):
+    data = mujoco.MjData(model)
+    adr = free_joint_qpos_address(model)
+    ik = LegIK(0.15, 0.15)
+    rng = np.random.default_rng(1)
+    for side in ("l", "r"):
+        for _ in range(5):
+            body_rot = rot_z(rng.uniform(-0.5, 0.5)) @ rot_y(rng.uniform(-0.2, 0.2)) @ rot_x(rng.uniform(-0.1, 0.1))
+            data.qpos[:] = 0.0
+            data.qpos[adr + 2] = 0.4
+            mujoco.mju_mat2Quat(data.qpos[adr + 3:adr + 7], body_rot.ravel())
+            mujoco.mj_kinematics(model, data)
+            hip = data.body(f"{MODEL_NAME}/{side}_thigh").xpos.copy()
+            foot_rot = rot_z(rng.uniform(-0.3, 0.3)) @ rot_y(rng.uniform(-0.1, 0.1))
+            ankle = hip + np.array([rng.uniform(-0.05, 0.05), rng.uniform(-0.03, 0.03), -0.27])
+            for joint, angle in zip(LEG_JOINTS, ik.solve(hip, body_rot, ankle, foot_rot)):
+                data.joint(f"{MODEL_NAME}/{side}_{joint}").qpos = angle
+            mujoco.mj_kinematics(model, data)
+            foot = data.body(f"{MODEL_NAME}/{side}_foot")
+            assert foot.xpos == pytest.approx(ankle, abs=1e-9)
+            assert foot.xmat.reshape(3, 3) == pytest.approx(foot_rot, abs=1e-9)
+
+
+def test_preview_control_tracks_a_zmp_staircase():
+    controller = ZmpPreviewController(com_height_m=0.33, dt_s=0.01)
+    controller.reset([0.0, 0.0])
+    n = 600
+    reference = np.zeros((n + controller.horizon, 2))
+    k = np.arange(len(reference))
+    reference[:, 1] = np.where(k < 100, 0.0, np.where((k // 50) % 2 == 1, 0.045, -0.045))
+    errors = []
+    for i in range(n):
+        controller.step(reference[i + 1:i + 1 + controller.horizon])
+        errors.append(controller.zmp - reference[i + 1])
+    errors = np.abs(np.array(errors))
+    assert errors[:, 1].mean() < 0.01
+    assert np.abs(controller.state[0]).max() < 0.045      # the CoM sways less than the feet
+
+
+def test_planner_turns_in_place_and_stops_feet_side_by_side():
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0)
+    planner.set_command(0.0, math.radians(10.0), 0.0)
+    t = 0.0
+    while t < 3.0:
+        planner.update(t, 1.6)
+        t += 0.01
+    planner.set_command(0.0, 0.0, t)
+    while t < 6.0:
+        planner.update(t, 1.6)
+        t += 0.01
+    left, right = planner.feet_landed
+    assert planner.current_step is None
+    assert left.yaw == pytest.approx(right.yaw)
+    assert left.yaw > math.radians(40.0)
+    assert math.hypot(left.x - right.x, left.y - right.y) == pytest.approx(0.09)
+    assert math.hypot((left.x + right.x) / 2, (left.y + right.y) / 2) < 1e-9
