@@ -4,3 +4,6 @@ from pathlib import Path
 
 #: Folder of the shipped ``*.toml`` scenarios.
 SCENARIOS_DIR = Path(__file__).resolve().parent
+
+#: The scenario ``egostab run`` walks when none is named.
+DEFAULT_SCENARIO = "corridor_straight"

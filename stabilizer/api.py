@@ -61,5 +61,5 @@ class Stabilizer:
 
 def estimate(reference: np.ndarray, current: np.ndarray, method: str = "t2fuzzy",
              **params: Any) -> Motion:
-    """Motion of ``current`` relative to ``reference`` (DESIGN.md convention) by ``method``."""
+    """Motion of ``current`` relative to ``reference`` (docs/design.md convention) by ``method``."""
     return Stabilizer(reference, method, **params).estimate(current)

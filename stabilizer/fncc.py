@@ -16,7 +16,7 @@ supports for this method; image pixels cannot be masked by OpenCV.
 
 :class:`RotatedTemplate` is the paper's "rotation compensation, then translation": the central
 region of the reference, rotated by a candidate angle about the image centre, matched in the
-current frame, whose offset is then the translation of the DESIGN.md motion convention.
+current frame, whose offset is then the translation of the docs/design.md motion convention.
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ class RotatedTemplate:
     """FNCC of the rotation-compensated central region of a reference in later frames.
 
     The current frame is the reference rotated by theta about the image centre, then shifted by
-    (dx, dy) (DESIGN.md). Rotating the reference by theta leaves only the shift, so the offset
+    (dx, dy) (docs/design.md). Rotating the reference by theta leaves only the shift, so the offset
     of the rotated reference's central region in the current frame is (dx, dy) directly. Only
     the template region is warped (bilinear); invalid reference pixels are masked out.
 

@@ -4,7 +4,7 @@
 whole pixel number of an image in a domain interval of 20, is set as the number of cluster seeds.
 ... the ratio was set at 2%."
 
-Resolution (ALGORITHMS.md, section 1): the histogram of the *valid* pixels (gray levels 1..255;
+Resolution (docs/method.md, section 1): the histogram of the *valid* pixels (gray levels 1..255;
 0 = no measurement never counts) is summed over bins of ``bin_width`` levels (1-20, 21-40, ...).
 A peak is a bin that is a local maximum (>= both neighbours; a plateau of equal bins counts once)
 holding more than ``min_ratio`` of the valid pixels. Each peak gives one seed: the bin's centre

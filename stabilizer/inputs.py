@@ -20,7 +20,7 @@ def depth_to_disparity(
     """Map metric depth to the 8-bit disparity-like image g = clip(round(K / d), 1, 255).
 
     K = 255 * ``near_m``, so a surface at the near limit is 255 and g falls as 1/d, as the
-    disparity of a stereo pair does (ALGORITHMS.md, section 0). Pixels that are not finite,
+    disparity of a stereo pair does (docs/method.md, section 0). Pixels that are not finite,
     not positive, nearer than ``near_m`` or farther than ``far_m`` are 0 (invalid).
 
     Args:

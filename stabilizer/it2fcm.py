@@ -1,7 +1,7 @@
 """Stage 2 of Kang, Zhang & Park (2009): interval type-2 fuzzy c-means segmentation.
 
 IT2-FCM after Hwang & Rhee (IEEE TFS 2007), the paper's equations (2)-(5), with the standard
-details of ALGORITHMS.md, section 2:
+details of docs/method.md, section 2:
 
 - type-1 memberships for a fuzzifier m: u_j(x_i) = 1 / sum_k (d_ij / d_ik)^(2/(m-1)), with
   d_ij = |x_i - v_j| (a level that sits on a centre belongs to it fully);

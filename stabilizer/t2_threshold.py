@@ -9,7 +9,7 @@ lower mu_L = mu^alpha, alpha in (1, 2], and the ultrafuzziness at position T is
 with h the histogram of the data (here: angle estimates quantised to ``resolution_deg``).
 
 The paper then takes "two peaks ... as thresholds that get rid of the left and right noise
-values" and averages the angles between them (Fig. 7). Resolution used here (ALGORITHMS.md,
+values" and averages the angles between them (Fig. 7). Resolution used here (docs/method.md,
 section 5, with the triangular membership it names): mu_T is a triangle of half-width
 ``bandwidth_deg`` centred at T. mu_U - mu_L vanishes where mu = 1 (at T) and where mu = 0, and
 is largest where mu ~ 0.4, so for a group of agreeing estimates gamma has one peak on each side
@@ -56,7 +56,7 @@ class Type2FuzzyThreshold:
     Args:
         alpha: exponent of the footprint of uncertainty, in (1, 2]; paper eq. (6), default 2.
         bandwidth_deg: half-width of the triangular membership function in degrees.
-        resolution_deg: quantisation step of the histogram of values (ALGORITHMS.md: 0.1 deg).
+        resolution_deg: quantisation step of the histogram of values (docs/method.md: 0.1 deg).
         min_values: fewer values than this fall back to the median.
     """
 

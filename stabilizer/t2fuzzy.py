@@ -1,7 +1,7 @@
 """The paper's stabilizer: Kang, Zhang & Park (2009), "Stereo-vision based motion stabilization of
 a humanoid robot for the environment recognition by type-2 fuzzy logic".
 
-Pipeline (ALGORITHMS.md, sections 1-7), each stage in its own module:
+Pipeline (docs/method.md, sections 1-7), each stage in its own module:
 
 1. cluster count and seeds from the histogram peaks (:mod:`stabilizer.histogram_seeds`);
 2. IT2-FCM on the weighted histogram of valid levels, hard labels, morphological clean-up
@@ -24,7 +24,7 @@ rotated by theta about the image centre c, then shifted by t = (dx, dy). Rotatin
 by the estimated theta about c therefore leaves exactly the shift t between it and the current
 frame, so the template (the central region of the reference, ``max_shift_px`` in from each side)
 is cut from the rotation-compensated reference and searched in the current frame: its offset is
-(dx, dy) in the DESIGN.md convention, with no further conversion. Only the template region is
+(dx, dy) in the docs/design.md convention, with no further conversion. Only the template region is
 warped. (Un-rotating the current frame instead would leave the shift R(-theta) t, which must be
 rotated back and needs a larger search range for the same t.)
 
@@ -327,7 +327,7 @@ class T2FuzzyEstimator:
         return replace(fits, valid=fits.valid & outlined, oriented=fits.oriented & outlined)
 
     def estimate(self, current: np.ndarray) -> Motion:
-        """Motion of ``current`` relative to the reference (DESIGN.md convention)."""
+        """Motion of ``current`` relative to the reference (docs/design.md convention)."""
         reference = self._reference_analysis
         # With overlap passes the whole-frame fits of the current frame are only needed if the
         # first pass fails.

@@ -5,7 +5,7 @@ into ``[cA_L, (cH_L, cV_L, cD_L), ..., (cH_1, cV_1, cD_1)]`` (cA = the paper's L
 detail subbands). The point set of a subband is the set of its *significant* coefficients
 (magnitude above ``significance`` times the subband's largest magnitude), each mapped back to the
 image coordinates of the centre of the pixel block it covers, so that every point set of every
-object shares the image frame (ALGORITHMS.md, section 3). Each point carries its coefficient's
+object shares the image frame (docs/method.md, section 3). Each point carries its coefficient's
 relative magnitude as a weight: for the LL band of a mask that is the fraction of the block the
 object covers, an anti-aliased description of the region.
 

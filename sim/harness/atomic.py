@@ -1,7 +1,7 @@
 """Atomic file writes: write under a temporary name in the same folder, then ``os.replace``.
 
 A reader (or a run interrupted by Ctrl-C) never sees a half-written file: the target path holds
-either the previous complete file or the new complete one (DESIGN.md, "Results are written
+either the previous complete file or the new complete one (docs/design.md, "Results are written
 atomically"). The temporary file lives in the target's folder because ``os.replace`` is atomic
 only within one file system.
 """

@@ -1,24 +1,24 @@
-"""Speed benchmarks: stabilizers, physics, rendering and the whole pipeline, side by side.
+"""Every speed figure of the project, measured side by side: the one place for speed code.
 
-``egostab bench`` (``run_benchmarks``) prints, measured in one run on this machine:
-stabilizer ms/frame per method on synthetic scenes and on frames of a simulated walk, with
-each method's ratio to the paper's; the walking physics' real-time factor (no rendering); the
-SR4000 render + ToF frames/s; and the real-time factor of the whole pipeline on the default
-scenario. ``--out`` writes them as Markdown with the machine they came from
-(results/bench.md).
+``egostab bench`` (:func:`run_benchmarks`) measures, in one run on this machine: stabilizer
+ms/frame per method on synthetic scenes and on frames of a simulated walk, with each method's
+ratio to the paper's; the walking physics' real-time factor (no rendering); the SR4000 render +
+ToF frames/s; and the real-time factor of the whole pipeline on the default scenario. ``--out``
+writes them as Markdown with the machine they came from (results/bench.md). The component
+timings (:func:`ground_truth_ms`, :func:`scoring_ms`, :func:`recording_ms`) are here for
+profiling one stage at a time.
 
-Stabilizer figures: milliseconds per frame at the SR4000's 176 x 144.
+Stabilizer figures: milliseconds per frame at the SR4000's 176 x 144. For each method and each
+of ``n_scenes`` synthetic depth scenes, ``Stabilizer(reference, method)`` is built once (the
+reference analysed once, as over a gait cycle) and ``estimate(current)`` is timed on that
+scene's share of ``n_frames`` frames (the reference moved by random rigid motions within +-15
+deg and +-40 px); several scenes, because the work of the paper's method depends on the scene
+(cluster count, convergence). One thread: OpenCV's and the BLAS/OpenMP pools are set to 1
+before anything is imported that starts them. The figure is the median over frames, so a rare
+slow frame (page fault, scheduler) does not move it.
 
-For each method and each of ``n_scenes`` synthetic depth scenes, ``Stabilizer(reference,
-method)`` is built once (the reference analysed once, as over a gait cycle) and
-``estimate(current)`` is timed on that scene's share of ``n_frames`` frames (the reference moved
-by random rigid motions within +-15 deg and +-40 px); several scenes, because the work of the
-paper's method depends on the scene (cluster count, convergence). One thread: OpenCV's and
-the BLAS/OpenMP pools are set to 1 before anything is imported that starts them. The figure is
-the median over frames, so a rare slow frame (page fault, scheduler) does not move it.
-
-Run: ``python -m sim.harness.bench`` for the stabilizers alone (options: ``--frames N``, ``--seed S``,
-``--methods a,b``), ``egostab bench`` for everything.
+Run: ``python -m sim.harness.bench`` for the stabilizers alone (options: ``--frames N``,
+``--seed S``, ``--methods a,b``), ``egostab bench`` for everything.
 """
 
 from __future__ import annotations
@@ -29,13 +29,31 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
 import argparse
+import dataclasses
+import math
+import tempfile
 import time
+from collections.abc import Sequence
+from pathlib import Path
 
 import cv2
+import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 import stabilizer
-from stabilizer.motion import apply_motion
+from sim.harness.ground_truth import GroundTruth, ground_truth
+from sim.harness.recording import RunRecorder
+from scenarios import DEFAULT_SCENARIO
+from sim.harness.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
+from sim.world.assembly import assemble, compile_world
+from sim.world.camera import SR4000_INTRINSICS, Frame
+from sim.world.scenes import build_scene
+from sim.world.sensor.sr4000 import SR4000, add_probe_camera
+from sim.world.sensor.tof_model import TOF_PRESETS
+from sim.world.walking import RobotSimulation
+from stabilizer.inputs import depth_to_disparity
+from stabilizer.motion import Motion, apply_motion
 
 SHAPE = (144, 176)
 #: The method every other method's time is compared with.
@@ -70,7 +88,7 @@ def time_method(method: str, scenes: list[tuple[np.ndarray, list]]) -> float:
     return 1e3 * float(np.median(times))
 
 
-def simulated_scenes(scenario: str = "corridor_straight", n_frames: int = 150,
+def simulated_scenes(scenario: str = DEFAULT_SCENARIO, n_frames: int = 150,
                      skip_s: float = 1.5) -> list[tuple[np.ndarray, list]]:
     """Frames of a simulated walk grouped by gait cycle: (first frame, the cycle's frames).
 
@@ -121,6 +139,154 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
     return results
 
 
+def walking_realtime_factor(sim_seconds: float = 20.0, gait: str = "default",
+                              clock=time.perf_counter) -> float:
+    """Simulated seconds per second of ``clock`` of the humanoid walking forward on a floor.
+
+    Times ``RobotSimulation.run`` (controller + physics, a single thread) only, after building
+    the world. ``clock`` is wall-clock time by default; ``time.process_time`` counts only this
+    process's CPU time, which other jobs sharing the machine disturb less.
+    """
+    if sim_seconds <= 0:
+        raise ValueError(f"sim_seconds must be > 0, got {sim_seconds!r}")
+    sim = RobotSimulation(compile_world(assemble()), gait=gait)
+    sim.command(forward_speed_mps=sim.gait.max_forward_speed_mps)
+    start = clock()
+    sim.run(sim_seconds)
+    return sim_seconds / (clock() - start)
+
+
+def ground_truth_ms(n_frames: int = 500, stride: int = 2) -> float:
+    """Milliseconds per ``ground_truth`` call on SR4000-sized frames; prints and returns it.
+
+    The reference is a blocky random depth scene at 0.8-5 m; each current pose is turned and
+    shifted a little (a walking head's motion), so most points stay in view.
+    """
+
+
+    rng = np.random.default_rng(0)
+    shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
+    depth = np.kron(rng.uniform(0.8, 5.0, (shape[0] // 8, shape[1] // 8)),
+                    np.ones((8, 8))).astype(np.float32)
+    base = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    no_image = np.zeros(shape, np.uint8)
+
+    def frame(index, cam_mat, cam_pos):
+        return Frame(index, index / 30.0, depth, depth > 0, no_image, cam_pos, cam_mat)
+
+    reference = frame(0, base, np.zeros(3))
+    currents = [frame(i, base @ Rotation.from_euler("zyx", rng.uniform(-3, 3, 3),
+                                                     degrees=True).as_matrix(),
+                      rng.uniform(-0.03, 0.03, 3)) for i in range(1, n_frames + 1)]
+    started = time.perf_counter()
+    for current in currents:
+        ground_truth(reference, current, stride=stride)
+    ms = 1e3 * (time.perf_counter() - started) / n_frames
+    print(f"ground_truth: {ms:.3f} ms/frame (stride {stride}, {n_frames} frames, 176 x 144)")
+    return ms
+
+
+def scoring_ms(n_frames: int = 1000, methods: tuple[str, ...] = ("t2fuzzy", "sift", "icp", "ecc",
+                                                               "fourier_mellin")) -> float:
+    """Milliseconds of scoring per frame (every method): records, ITF updates, the summary.
+
+    Prints and returns the figure; the compensation warps themselves (the runner's
+    ``stabilizer.compensate`` calls) are not included.
+    """
+
+    rng = np.random.default_rng(0)
+    images = rng.integers(0, 256, (8, 144, 176), dtype=np.uint8)
+    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
+    estimate = Motion(1.1, 2.2, 2.9)
+    itf = ItfAccumulator()
+    records = []
+    started = time.perf_counter()
+    for index in range(n_frames):
+        cycle, reference = index // 30, 30 * (index // 30)
+        itf.add(RAW_STREAM, images[index % 8], gait_cycle=cycle, reference_index=reference)
+        for method in methods:
+            records.append(FrameRecord.score(
+                frame_index=index, time_s=index / 30, gait_cycle=cycle,
+                reference_index=reference, method=method, estimate=estimate, truth=truth, ms=2.0))
+            itf.add(method, images[(index + 1) % 8], gait_cycle=cycle, reference_index=reference)
+    summarize(records, itf)
+    ms = 1e3 * (time.perf_counter() - started) / n_frames
+    print(f"scoring: {ms:.3f} ms/frame ({len(methods)} methods, {n_frames} frames, 176 x 144)")
+    return ms
+
+
+def recording_ms(n_frames: int = 300, methods: Sequence[str] = ("t2fuzzy", "sift", "icp", "ecc",
+                                                             "fourier_mellin")) -> float:
+    """Milliseconds per ``log_frame`` with every entity logged; prints it and the file size.
+
+    Synthetic SR4000-sized frames: noisy depth, its disparity image, a compensated frame per
+    method, a 5-cluster segmentation with ellipses for the first method.
+    """
+
+
+    rng = np.random.default_rng(0)
+    shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
+    labels = np.kron(rng.integers(0, 6, (shape[0] // 16, shape[1] // 16)),
+                     np.ones((16, 16), np.int32))
+    ellipses = [(40.0 + 20 * i, 70.0, 15.0, 8.0, 30.0 * i) for i in range(5)]
+    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "benchmark.rrd"
+        elapsed = 0.0
+        with RunRecorder(path, methods) as recorder:
+            for index in range(n_frames):
+                depth = rng.uniform(0.8, 5.0, shape).astype(np.float32)
+                disparity = depth_to_disparity(depth)
+                frame = Frame(index, index / 30.0, depth, depth > 0, disparity,
+                              rng.normal(size=3), np.eye(3))
+                estimates = {method: Motion(1.1, 2.1, 2.9) for method in methods}
+                estimates[methods[0]] = Motion(1.1, 2.1, 2.9, diagnostics={
+                    "labels": labels, "ellipses": ellipses})
+                compensated = {method: disparity for method in methods}
+                started = time.perf_counter()
+                recorder.log_frame(frame, estimates=estimates, truth=truth,
+                                   compensated=compensated)
+                elapsed += time.perf_counter() - started
+        size_kb = path.stat().st_size / 1024 / n_frames
+    ms = 1e3 * elapsed / n_frames
+    print(f"RunRecorder.log_frame: {ms:.2f} ms/frame, {size_kb:.0f} KB/frame "
+          f"({len(methods)} methods, {n_frames} frames, random depth: worst case for size)")
+    return ms
+
+
+def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
+    """Frames/s of render + ToF model on a camera walking the corridor scene (one process).
+
+    Prints and returns the figure. Motion blur off by default (one render per frame), as in the
+    speed target (>= 150 frames/s at 176 x 144).
+    """
+
+    scene = build_scene("corridor", seed=0)
+    probe = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg)
+    model = scene.compile()
+    data = mujoco.MjData(model)
+    params = TOF_PRESETS["sr4000"]
+    if not motion_blur:
+        params = dataclasses.replace(params, motion_blur_subframes=1)
+    yaw = math.radians(scene.start_yaw_deg)
+    velocity = 0.1 * np.array([math.cos(yaw), math.sin(yaw), 0.0])  # the robot's pace, m/s
+    mocap = model.body(probe).mocapid[0]
+    start = data.mocap_pos[mocap].copy()
+    with SR4000(model, probe, params, seed=0) as sensor:
+        started = time.perf_counter()
+        for k in range(n_frames):
+            for t in sensor.exposure_times(k):
+                data.time = t
+                data.mocap_pos[mocap] = start + velocity * t
+                sensor.expose(data)
+            sensor.read_frame(k)
+        elapsed = time.perf_counter() - started
+    fps = n_frames / elapsed
+    print(f"SR4000 render + ToF: {fps:.1f} frames/s at 176x144 "
+          f"({n_frames} frames, motion blur {'on' if motion_blur else 'off'})")
+    return fps
+
+
 def _machine() -> str:
     import platform
 
@@ -136,23 +302,17 @@ def _machine() -> str:
 
 def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     """Every speed figure of the project, measured side by side; optionally as Markdown."""
-    import tempfile
-    from pathlib import Path
-
     from sim.harness.atomic import write_text_atomic
-    from sim.harness.cli import DEFAULT_SCENARIO
     from sim.harness.runner import RunConfig, run
-    from sim.world.sensor.sr4000 import benchmark_fps
-    from sim.world.walking import benchmark_realtime_factor
 
     n_frames = 60 if quick else 200
     synthetic = stabilizer_benchmark(n_frames=n_frames)
     walk = stabilizer_benchmark(scenes=simulated_scenes(DEFAULT_SCENARIO, n_frames // 2 if quick
                                                         else 150),
                                 label=f"a simulated walk, scenario {DEFAULT_SCENARIO}")
-    physics_rtf = benchmark_realtime_factor(5.0 if quick else 20.0)
+    physics_rtf = walking_realtime_factor(5.0 if quick else 20.0)
     print(f"walking physics + control, no rendering: {physics_rtf:.1f}x real time")
-    render_fps = benchmark_fps(100 if quick else 300)
+    render_tof_fps = render_fps(100 if quick else 300)
     pipeline_frames = 45 if quick else 150
     with tempfile.TemporaryDirectory() as scratch:
         metrics = run(RunConfig(DEFAULT_SCENARIO, scratch, record=True,
@@ -162,7 +322,7 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
           f"{len(metrics['run']['methods'])} methods, recording on: {pipeline_rtf:.2f}x real time")
     figures = {"machine": _machine(), "date": time.strftime("%Y-%m-%d"),
                "stabilizer_ms_synthetic": synthetic, "stabilizer_ms_simulated": walk,
-               "physics_realtime_factor": physics_rtf, "render_tof_fps": render_fps,
+               "physics_realtime_factor": physics_rtf, "render_tof_fps": render_tof_fps,
                "pipeline_realtime_factor": pipeline_rtf, "quick": quick}
     if out_path is not None:
         write_text_atomic(Path(out_path), bench_markdown(figures))
@@ -190,14 +350,32 @@ def bench_markdown(figures: dict) -> str:
     return "\n".join(lines)
 
 
+COMPONENTS = {
+    "ground-truth": lambda: (ground_truth_ms(stride=2), ground_truth_ms(stride=1)),
+    "scoring": scoring_ms,
+    "recording": recording_ms,
+    "render": lambda: (render_fps(), render_fps(motion_blur=True)),
+    "walking": lambda: print(f"walking physics + control, no rendering: "
+                             f"{walking_realtime_factor():.1f}x real time (wall clock), "
+                             f"{walking_realtime_factor(clock=time.process_time):.1f}x "
+                             f"(process CPU time)"),
+}
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("component", nargs="?", default="stabilizers",
+                        choices=("stabilizers", *COMPONENTS),
+                        help="what to time (default: the stabilizers)")
     parser.add_argument("--frames", type=int, default=200, help="frames timed per method")
     parser.add_argument("--seed", type=int, default=0, help="scene and motion seed")
     parser.add_argument("--scenes", type=int, default=10, help="distinct scenes")
     parser.add_argument("--methods", default=None,
                         help="comma-separated methods (default: all available)")
     args = parser.parse_args(argv)
+    if args.component != "stabilizers":
+        COMPONENTS[args.component]()
+        return
     methods = None if args.methods is None else args.methods.split(",")
     stabilizer_benchmark(methods, args.frames, args.seed, args.scenes)
 

@@ -12,8 +12,8 @@ import argparse
 import sys
 from pathlib import Path
 
-#: Scenario run by ``egostab run`` with no arguments.
-DEFAULT_SCENARIO = "corridor_straight"
+from scenarios import DEFAULT_SCENARIO
+
 #: Where runs write unless told otherwise: results/<scenario name>/.
 DEFAULT_RESULTS = Path("results")
 

@@ -1,6 +1,6 @@
 """The exact image motion of a frame against its reference, from the simulator's poses.
 
-DESIGN.md, "Ground truth": unproject every valid reference pixel with its depth and the
+docs/design.md, "Ground truth": unproject every valid reference pixel with its depth and the
 intrinsics, move the 3-D point by the exact relative camera pose, project it into the current
 camera, drop points that fall behind the camera, outside the image or behind a nearer surface,
 and fit the 2-D rigid transform (rotation about the image centre, then translation; the
@@ -147,7 +147,7 @@ def ground_truth(reference: Frame, current: Frame,
                  current_depth_m: np.ndarray | None = None,
                  min_points: int = MIN_POINTS, occlusion_abs_m: float = OCCLUSION_ABS_M,
                  occlusion_rel: float = OCCLUSION_REL) -> GroundTruth:
-    """Ground-truth Motion of ``current`` against ``reference`` (DESIGN.md, "Ground truth").
+    """Ground-truth Motion of ``current`` against ``reference`` (docs/design.md, "Ground truth").
 
     Args:
         reference, current: frames with planar depth, validity and exact camera poses.
@@ -200,40 +200,3 @@ def ground_truth(reference: Frame, current: Frame,
     target = np.stack([u[keep], v[keep]], axis=1)
     fit = fit_rigid_2d(source, target, image_centre((intrinsics.height, intrinsics.width)))
     return GroundTruth(Motion(fit.angle_deg, fit.dx, fit.dy), fit.residual_rms_px, n_points)
-
-
-def benchmark(n_frames: int = 500, stride: int = 2) -> float:
-    """Milliseconds per ``ground_truth`` call on SR4000-sized frames; prints and returns it.
-
-    The reference is a blocky random depth scene at 0.8-5 m; each current pose is turned and
-    shifted a little (a walking head's motion), so most points stay in view.
-    """
-    import time
-
-    from scipy.spatial.transform import Rotation
-
-    rng = np.random.default_rng(0)
-    shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
-    depth = np.kron(rng.uniform(0.8, 5.0, (shape[0] // 8, shape[1] // 8)),
-                    np.ones((8, 8))).astype(np.float32)
-    base = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    no_image = np.zeros(shape, np.uint8)
-
-    def frame(index, cam_mat, cam_pos):
-        return Frame(index, index / 30.0, depth, depth > 0, no_image, cam_pos, cam_mat)
-
-    reference = frame(0, base, np.zeros(3))
-    currents = [frame(i, base @ Rotation.from_euler("zyx", rng.uniform(-3, 3, 3),
-                                                     degrees=True).as_matrix(),
-                      rng.uniform(-0.03, 0.03, 3)) for i in range(1, n_frames + 1)]
-    started = time.perf_counter()
-    for current in currents:
-        ground_truth(reference, current, stride=stride)
-    ms = 1e3 * (time.perf_counter() - started) / n_frames
-    print(f"ground_truth: {ms:.3f} ms/frame (stride {stride}, {n_frames} frames, 176 x 144)")
-    return ms
-
-
-if __name__ == "__main__":
-    benchmark(stride=2)
-    benchmark(stride=1)

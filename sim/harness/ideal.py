@@ -9,7 +9,7 @@ Images accepted (``load_image``):
 - a 16-bit PNG: depth in millimetres (0 = no measurement), as depth cameras export it;
 - a ``.npy`` file: float depth in metres;
 - a scene name of ``sim.world.scenes.SCENES``: the noise-free SR4000 frame seen by the standing
-  robot at the scene's start (rendered with the "ideal" sensor preset).
+  robot at the scene's start (rendered with the "noiseless" sensor preset).
 
 Trajectories (``load_trajectory``): ``"paper_cycle"`` (default) is one gait cycle with the
 magnitudes the paper saw on its walking robot (section III-B: x peaks near +-40 px, y between 2
@@ -98,7 +98,7 @@ def render_scene_still(scene_name: str, seed: int = 0) -> np.ndarray:
     from sim.world.sensor.tof_model import TOF_PRESETS
 
     robot = build_robot(scene_name, seed, seed=seed)
-    with SR4000(robot.model, robot.camera_name, TOF_PRESETS["ideal"]) as sensor:
+    with SR4000(robot.model, robot.camera_name, TOF_PRESETS["noiseless"]) as sensor:
         return sensor.capture_still(robot.data).depth_m
 
 

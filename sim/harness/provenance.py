@@ -1,6 +1,6 @@
 """How a run was made: package versions, Python, and the git commit of the harness.
 
-DESIGN.md: "Each run stores its resolved scenario, seed, package versions and git commit beside
+docs/design.md: "Each run stores its resolved scenario, seed, package versions and git commit beside
 its metrics and in its recording." Versions come from the installed distributions' metadata (no
 heavy imports); the commit from ``git rev-parse HEAD`` when the code lives in a git work tree,
 and is None otherwise (an installed wheel, no git on the machine).

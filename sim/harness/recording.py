@@ -142,7 +142,7 @@ class RunRecorder:
             added under "provenance".
         frame_stride: log images, depth and the camera of every ``frame_stride``-th frame
             (a frame adds ~15 KB for clean depth, up to ~250 KB for noisy depth with five
-            methods: ``python -m sim.harness.recording``); scalars are logged for every frame.
+            methods: ``python -m sim.harness.bench recording``); scalars are logged for every frame.
         recording_id: rerun's recording id; random when None.
     """
 
@@ -328,49 +328,3 @@ class RunRecorder:
     def __exit__(self, *exc_info) -> bool:
         self.close()  # also after an error or Ctrl-C: the frames logged so far are kept
         return False
-
-
-def benchmark(n_frames: int = 300, methods: Sequence[str] = ("t2fuzzy", "sift", "icp", "ecc",
-                                                             "fourier_mellin")) -> float:
-    """Milliseconds per ``log_frame`` with every entity logged; prints it and the file size.
-
-    Synthetic SR4000-sized frames: noisy depth, its disparity image, a compensated frame per
-    method, a 5-cluster segmentation with ellipses for the first method.
-    """
-    import tempfile
-    import time
-
-    from stabilizer.inputs import depth_to_disparity
-
-    rng = np.random.default_rng(0)
-    shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
-    labels = np.kron(rng.integers(0, 6, (shape[0] // 16, shape[1] // 16)),
-                     np.ones((16, 16), np.int32))
-    ellipses = [(40.0 + 20 * i, 70.0, 15.0, 8.0, 30.0 * i) for i in range(5)]
-    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "benchmark.rrd"
-        elapsed = 0.0
-        with RunRecorder(path, methods) as recorder:
-            for index in range(n_frames):
-                depth = rng.uniform(0.8, 5.0, shape).astype(np.float32)
-                disparity = depth_to_disparity(depth)
-                frame = Frame(index, index / 30.0, depth, depth > 0, disparity,
-                              rng.normal(size=3), np.eye(3))
-                estimates = {method: Motion(1.1, 2.1, 2.9) for method in methods}
-                estimates[methods[0]] = Motion(1.1, 2.1, 2.9, diagnostics={
-                    "labels": labels, "ellipses": ellipses})
-                compensated = {method: disparity for method in methods}
-                started = time.perf_counter()
-                recorder.log_frame(frame, estimates=estimates, truth=truth,
-                                   compensated=compensated)
-                elapsed += time.perf_counter() - started
-        size_kb = path.stat().st_size / 1024 / n_frames
-    ms = 1e3 * elapsed / n_frames
-    print(f"RunRecorder.log_frame: {ms:.2f} ms/frame, {size_kb:.0f} KB/frame "
-          f"({len(methods)} methods, {n_frames} frames, random depth: worst case for size)")
-    return ms
-
-
-if __name__ == "__main__":
-    benchmark()

@@ -2,9 +2,9 @@
 
 ``run(RunConfig) -> metrics`` is a pure, picklable entry point: it builds the world, the robot
 and the renderer inside the calling process, so a process pool (spawn), Ray or Dask can run
-many of them (DESIGN.md, "Parallel runs").
+many of them (docs/design.md, "Parallel runs").
 
-One frame of the loop (DESIGN.md, "Data flow of one run"): the robot walks under physics,
+One frame of the loop (docs/design.md, "Data flow of one run"): the robot walks under physics,
 control period by control period, following the scenario's commands; at the SR4000's exposure
 times the sensor renders; the finished Frame is scored against its reference frame (chosen by
 the scenario's reference policy) by the ground truth and by every method; the recorder logs it.
@@ -67,7 +67,7 @@ def scenario_name(scenario: str | os.PathLike) -> str:
 class _ReferenceTracker:
     """Holds the current reference frame and its analysed Stabilizers, per the policy.
 
-    Policies (DESIGN.md): ``cycle_start`` = the first frame of each gait cycle; ``previous``
+    Policies (docs/design.md): ``cycle_start`` = the first frame of each gait cycle; ``previous``
     = the frame before; ``first`` = the run's first frame.
     """
 

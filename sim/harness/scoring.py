@@ -1,6 +1,6 @@
 """Scores of stabilizers against the ground truth: per frame, per gait cycle, per run.
 
-DESIGN.md, "Scoring": for each method and each of rotation (deg), x (px) and y (px), the mean,
+docs/design.md, "Scoring": for each method and each of rotation (deg), x (px) and y (px), the mean,
 variance and maximum of the absolute error (the paper's Table I reports mean and variance of
 the errors "for one cycle"); the failure rate (frames with no estimate); time per frame; and the
 inter-frame transformation fidelity (ITF), the mean PSNR between consecutive compensated frames,
@@ -302,38 +302,3 @@ class ItfAccumulator:
 
     def streams(self) -> tuple[str, ...]:
         return tuple(self._previous)
-
-
-
-def benchmark(n_frames: int = 1000, methods: tuple[str, ...] = ("t2fuzzy", "sift", "icp", "ecc",
-                                                               "fourier_mellin")) -> float:
-    """Milliseconds of scoring per frame (every method): records, ITF updates, the summary.
-
-    Prints and returns the figure; the compensation warps themselves (the runner's
-    ``stabilizer.compensate`` calls) are not included.
-    """
-    import time
-
-    rng = np.random.default_rng(0)
-    images = rng.integers(0, 256, (8, 144, 176), dtype=np.uint8)
-    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
-    estimate = Motion(1.1, 2.2, 2.9)
-    itf = ItfAccumulator()
-    records = []
-    started = time.perf_counter()
-    for index in range(n_frames):
-        cycle, reference = index // 30, 30 * (index // 30)
-        itf.add(RAW_STREAM, images[index % 8], gait_cycle=cycle, reference_index=reference)
-        for method in methods:
-            records.append(FrameRecord.score(
-                frame_index=index, time_s=index / 30, gait_cycle=cycle,
-                reference_index=reference, method=method, estimate=estimate, truth=truth, ms=2.0))
-            itf.add(method, images[(index + 1) % 8], gait_cycle=cycle, reference_index=reference)
-    summarize(records, itf)
-    ms = 1e3 * (time.perf_counter() - started) / n_frames
-    print(f"scoring: {ms:.3f} ms/frame ({len(methods)} methods, {n_frames} frames, 176 x 144)")
-    return ms
-
-
-if __name__ == "__main__":
-    benchmark()

@@ -32,7 +32,7 @@ Output folder of a sweep (``run_sweep(spec, out_dir)``)::
 A run whose metrics.json says ``"status": "complete"`` (or ``"fell"``) is skipped, so an
 interrupted sweep is resumed by running it again. A run that raises is reported in the table
 and does not stop the others. Runs go to a local process pool (``spawn`` start method: an
-EGL context made in a parent breaks in forked children; DESIGN.md, "Parallel runs") or, with
+EGL context made in a parent breaks in forked children; docs/design.md, "Parallel runs") or, with
 ``backend="ray"``, to a Ray cluster (the optional extra ``cluster``). On a cluster of several
 machines, ``out_dir`` must be on a shared file system for the run files and for resuming; the
 table itself is built from the metrics the runs return.

@@ -1,7 +1,7 @@
 """Assemble a world: an arena (any dm_control MJCF) plus the free-standing humanoid.
 
 The robot is attached through an attachment frame that carries a free joint, so it stands on
-the arena's floor and moves only under physics (HUMANOID.md, "Composing scenes").
+the arena's floor and moves only under physics (docs/walking.md, "Composing scenes").
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dm_control import mjcf
 
 from sim.world.humanoid import TORSO_BODY_NAME, humanoid_mjcf
 
-#: Physics settings the walking controller is tuned for (HUMANOID.md recipe, step 6).
+#: Physics settings the walking controller is tuned for (docs/walking.md recipe, step 6).
 PHYSICS_TIMESTEP_S = 0.0025
 #: Nearest and farthest rendered depth, metres: the SR4000's range (0.1-10 m) with margin.
 DEPTH_NEAR_M = 0.05

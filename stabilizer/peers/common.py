@@ -1,7 +1,7 @@
 """What the peer estimators share: the frame check, denoising, valid-scene masks, the start
 search of the local methods and 2-D rigid geometry.
 
-All geometry speaks the Motion convention of DESIGN.md (stabilizer/motion.py): a rotation about
+All geometry speaks the Motion convention of docs/design.md (stabilizer/motion.py): a rotation about
 the image centre c = ((W - 1) / 2, (H - 1) / 2), counter-clockwise positive as displayed (OpenCV's
 ``getRotationMatrix2D``), then a translation; it maps reference pixels to current pixels. In image
 coordinates (y down) that rotation is R(a) = [[cos a, sin a], [-sin a, cos a]].

@@ -15,7 +15,7 @@ What counts as "names what was wrong" depends on the input:
   mismatched shapes: it names both shapes; a non-array: it names the type.
 
 Beside that, two cheap invariants: inputs are never modified, and ``estimate`` and a fresh
-``Stabilizer`` give the same answer for the same pair (bit for bit; DESIGN.md, determinism).
+``Stabilizer`` give the same answer for the same pair (bit for bit; docs/design.md, determinism).
 
 Hypothesis runs derandomized (the same examples on every run) with few examples per test, so the
 file stays well under ~90 s on one core.

@@ -22,10 +22,8 @@ the sources of its figures are in :mod:`sim.world.sensor.tof_model`.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
-import time
 
 
 import mujoco  # noqa: E402
@@ -47,7 +45,7 @@ def sr4000_camera_attributes(intrinsics: CameraIntrinsics = SR4000_INTRINSICS) -
     """MJCF ``<camera>`` attributes that give the SR4000's exact pinhole intrinsics.
 
     MuJoCo takes separate focal lengths through ``focalpixel`` with ``sensorsize`` and
-    ``resolution``; the principal point stays at the image centre (SR4000.md).
+    ``resolution``; the principal point stays at the image centre (docs/sensor.md).
     """
     pixel_pitch_m = 40e-6
     return {
@@ -255,42 +253,3 @@ def _pose_at(time_s, exposures):
     position = (1 - s) * before[2] + s * after[2]
     slerp = Slerp([0.0, 1.0], Rotation.from_matrix([before[3], after[3]]))
     return position, slerp([s]).as_matrix()[0]
-
-
-def benchmark_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
-    """Frames/s of render + ToF model on a camera walking the corridor scene (one process).
-
-    Prints and returns the figure. Motion blur off by default (one render per frame), as in the
-    speed target (>= 150 frames/s at 176 x 144).
-    """
-    from sim.world.scenes import build_scene
-
-    scene = build_scene("corridor", seed=0)
-    probe = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg)
-    model = scene.compile()
-    data = mujoco.MjData(model)
-    params = TOF_PRESETS["sr4000"]
-    if not motion_blur:
-        params = dataclasses.replace(params, motion_blur_subframes=1)
-    yaw = math.radians(scene.start_yaw_deg)
-    velocity = 0.1 * np.array([math.cos(yaw), math.sin(yaw), 0.0])  # the robot's pace, m/s
-    mocap = model.body(probe).mocapid[0]
-    start = data.mocap_pos[mocap].copy()
-    with SR4000(model, probe, params, seed=0) as sensor:
-        started = time.perf_counter()
-        for k in range(n_frames):
-            for t in sensor.exposure_times(k):
-                data.time = t
-                data.mocap_pos[mocap] = start + velocity * t
-                sensor.expose(data)
-            sensor.read_frame(k)
-        elapsed = time.perf_counter() - started
-    fps = n_frames / elapsed
-    print(f"SR4000 render + ToF: {fps:.1f} frames/s at 176x144 "
-          f"({n_frames} frames, motion blur {'on' if motion_blur else 'off'})")
-    return fps
-
-
-if __name__ == "__main__":
-    benchmark_fps()
-    benchmark_fps(motion_blur=True)

@@ -1,9 +1,9 @@
 """Time-of-flight model of the MESA SwissRanger SR4000: rendered depth -> what the sensor reports.
 
-Every artifact is one parameter of :class:`ToFParams` and can be switched off; ``ToFParams.ideal()``
+Every artifact is one parameter of :class:`ToFParams` and can be switched off; ``ToFParams.noiseless()``
 switches all of them off, and then the reported depth equals the rendered depth exactly.
 
-Model, per frame (SR4000.md, "Artifacts of a real ToF camera"):
+Model, per frame (docs/sensor.md, "Artifacts of a real ToF camera"):
 
 1. Radial range r = z * sqrt(1 + x_n^2 + y_n^2) from the planar depth z the renderer gives.
 2. Amplitude A = (rho / rho_ref) * cos(theta) * (d_ref / r)^2, so A = 1 for a 99 % target head-on
@@ -142,7 +142,7 @@ class ToFParams:
                                  f"allowed: {allowed}")
 
     @classmethod
-    def ideal(cls) -> "ToFParams":
+    def noiseless(cls) -> "ToFParams":
         """Every effect off: the reported depth is the rendered depth."""
         return cls(phase_wrapping=False, min_range_m=0.0, max_range_m=math.inf,
                    incidence_angle=False, min_amplitude=0.0, saturation_amplitude=math.inf,
@@ -185,7 +185,7 @@ class ToFParams:
 #: Named parameter sets; scenarios pick one and may override fields.
 TOF_PRESETS: dict[str, ToFParams] = {
     "sr4000": ToFParams(),
-    "ideal": ToFParams.ideal(),
+    "noiseless": ToFParams.noiseless(),
     # 3x the repeatability and 2x the wiggling, stronger mixing and a stricter confidence
     # threshold: a worn or badly lit sensor, for robustness tests.
     "high_noise": ToFParams(noise_sigma_ref_m=0.012, noise_sigma_max_m=0.15,
@@ -237,7 +237,7 @@ class ToFModel:
         """Reported (depth_m float32 with 0 where invalid, valid bool) from sub-frame renders.
 
         The centre render (the middle one of the integration window) is the reference the
-        reported depth is built on, so the ideal preset returns it unchanged.
+        reported depth is built on, so the noiseless preset returns it unchanged.
         """
         p = self.params
         if len(renders) != p.motion_blur_subframes:
@@ -278,7 +278,7 @@ class ToFModel:
         return amplitude
 
     def _phasor_average(self, ranges, amplitudes, rng):
-        """Mix neighbours and sub-frames as complex phasors A e^{i 2 pi r / U} (SR4000.md)."""
+        """Mix neighbours and sub-frames as complex phasors A e^{i 2 pi r / U} (docs/sensor.md)."""
         p = self.params
         period = np.float32(p.unambiguous_range_m)
         to_phase = np.float32(2 * np.pi) / period

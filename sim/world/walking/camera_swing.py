@@ -1,7 +1,7 @@
 """How much the head camera swings over a gait cycle, in degrees and in SR4000 pixels.
 
 For every control period of a steady forward walk, the camera's rotation relative to the first
-frame of the current gait cycle (the paper's reference frame, DESIGN.md) is split into pitch
+frame of the current gait cycle (the paper's reference frame, docs/design.md) is split into pitch
 (about the camera x axis), yaw (about y) and roll (about z, the optical axis). For a distant
 scene these move the image by about x = fx tan(yaw), y = fy tan(pitch) pixels and rotate it by
 the roll: the magnitudes the paper reports for its robot (x +-40 px, y 2-32 px, +-12 deg).

@@ -8,7 +8,7 @@ from dataclasses import dataclass, fields
 
 @dataclass(frozen=True)
 class GaitParams:
-    """Parameters of the ZMP-preview walking gait (HUMANOID.md, "the standard recipe").
+    """Parameters of the ZMP-preview walking gait (docs/walking.md, "the standard recipe").
 
     Attributes:
         step_period_s: duration of one step (a gait cycle is two steps), seconds.

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from scenarios import SCENARIOS_DIR
-from sim.harness.cli import DEFAULT_SCENARIO, build_parser, main
+from scenarios import DEFAULT_SCENARIO
+from sim.harness.cli import build_parser, main
 from sim.harness.scenario import list_scenarios
 from stabilizer import depth_to_disparity
 from stabilizer.testing import make_depth_scene

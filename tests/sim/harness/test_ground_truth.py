@@ -1,4 +1,4 @@
-"""Ground truth from exact poses (DESIGN.md, "Ground truth") against independent ray-cast frames."""
+"""Ground truth from exact poses (docs/design.md, "Ground truth") against independent ray-cast frames."""
 
 import dataclasses
 import math

@@ -19,7 +19,7 @@ from sim.world.sensor.tof_model import TOF_PRESETS
 from stabilizer.api import available_methods
 
 REQUIRED = {"corridor_straight", "office_turn", "lab_clutter", "stop_and_go", "paper_like_gait",
-            "high_noise", "ideal_sensor"}
+            "high_noise", "noiseless_sensor"}
 
 MINIMAL = 'scene = "lab"\n'
 
@@ -114,7 +114,7 @@ frame_stride = 3
     ('scene = "lab"\nscene_seed = 1.5\n', "scene_seed", "integer"),
     ('scene = "lab"\nseed = true\n', "seed", "integer"),
     ('scene = "lab"\n[sensor]\nfps = 60\n', "sensor.fps", "54"),
-    ('scene = "lab"\n[sensor]\npreset = "kinect"\n', "sensor.preset", "ideal"),
+    ('scene = "lab"\n[sensor]\npreset = "kinect"\n', "sensor.preset", "noiseless"),
     ('scene = "lab"\n[sensor]\ngain = 2\n', "sensor.gain", "keys preset"),
     ('scene = "lab"\n[sensor]\noverrides = { noise = 1.0 }\n', "sensor.overrides.noise",
      "noise_sigma_ref_m"),

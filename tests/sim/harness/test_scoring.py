@@ -1,4 +1,4 @@
-"""Per-frame records, per-cycle/per-run aggregates and the ITF accumulator (DESIGN.md, Scoring)."""
+"""Per-frame records, per-cycle/per-run aggregates and the ITF accumulator (docs/design.md, Scoring)."""
 
 import math
 

@@ -75,7 +75,7 @@ def test_the_sensor_sees_objects_at_several_depths(name):
     camera = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg)
     model = scene.compile()
     data = mujoco.MjData(model)
-    with SR4000(model, camera, TOF_PRESETS["ideal"]) as sensor:
+    with SR4000(model, camera, TOF_PRESETS["noiseless"]) as sensor:
         frame = sensor.capture_still(data)
     depth = frame.depth_m[frame.valid]
     counts, _ = np.histogram(depth, bins=[0.5, 1.5, 2.5, 3.5, 4.5, 5.0])
@@ -116,7 +116,7 @@ def test_robot_attaches_and_its_camera_is_an_sr4000():
                                                      scene.start_yaw_deg))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    with SR4000(model, humanoid.CAMERA_NAME, TOF_PRESETS["ideal"]) as sensor:
+    with SR4000(model, humanoid.CAMERA_NAME, TOF_PRESETS["noiseless"]) as sensor:
         frame = sensor.capture_still(data)
     assert frame.valid.mean() > 0.8
     assert 0.4 < frame.cam_pos[2] < 0.7

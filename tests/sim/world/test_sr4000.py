@@ -18,7 +18,7 @@ from sim.world.sensor.sr4000 import SR4000, add_probe_camera, camera_intrinsics 
 from sim.world.sensor.tof_model import TOF_PRESETS, ToFParams  # noqa: E402
 from stabilizer.inputs import depth_to_disparity  # noqa: E402
 
-IDEAL = TOF_PRESETS["ideal"]
+NOISELESS = TOF_PRESETS["noiseless"]
 DEFAULT = TOF_PRESETS["sr4000"]
 
 
@@ -75,11 +75,11 @@ def test_rendered_fov_matches_intrinsics():
     assert np.ptp(rows) + 1 == pytest.approx(2 * half * k.fy / z, abs=1.0)
 
 
-def test_ideal_preset_equals_raw_render():
+def test_noiseless_preset_equals_raw_render():
     edge = ((1.0, 0.5, 0.55), (0.05, 0.5, 2.0))
     model, data, camera = box_world([wall(3.0, half_width=1.0), edge])
     raw = raw_depth(model, data, camera)
-    (frame,) = stills(model, data, camera, IDEAL, 1)
+    (frame,) = stills(model, data, camera, NOISELESS, 1)
     surface = raw < 0.999 * 3.0 * 10.0
     assert (~surface).any() and surface.any()
     np.testing.assert_array_equal(frame.valid, surface)
@@ -178,7 +178,7 @@ def test_frames_within_a_duration_end_their_exposure_in_it():
 
 def test_even_subframes_interpolate_the_mid_exposure_pose():
     model, data, camera = box_world([wall(2.0)])
-    params = dataclasses.replace(IDEAL, motion_blur_subframes=2)
+    params = dataclasses.replace(NOISELESS, motion_blur_subframes=2)
     with SR4000(model, camera, params) as sensor:
         for t in sensor.exposure_times(0):
             data.time = t
@@ -246,7 +246,7 @@ def test_phasor_mixing_leaves_a_flat_wall_unchanged():
     """Mixed-pixel blending is by complex phasors: on a flat wall it moves nothing (< 0.1 mm)."""
     model, data, camera = box_world([wall(2.0)])
     raw = raw_depth(model, data, camera)
-    mixing_only = dataclasses.replace(IDEAL, mixed_pixel_weight=1.0, phase_wrapping=True)
+    mixing_only = dataclasses.replace(NOISELESS, mixed_pixel_weight=1.0, phase_wrapping=True)
     (frame,) = stills(model, data, camera, mixing_only, 1)
     np.testing.assert_allclose(frame.depth_m, raw, atol=1e-4)
 
