@@ -46,3 +46,25 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
         temporary.write_text(text, encoding="utf-8")
     return Path(path)
 
+
+
+def prepare_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Create the output folder ``path`` and prove it writable, before any work starts.
+
+    A run that finds an unwritable folder only at its first write loses all the simulation
+    before it; this check moves that failure to the start. Raises ValueError with one line
+    naming the folder, the problem and what is accepted.
+    """
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{option} {folder}: exists and is not a folder; accepted: a folder "
+                         "(created if missing)")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle, probe = tempfile.mkstemp(dir=folder, prefix=".write-test.", suffix=".tmp")
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as error:
+        raise ValueError(f"{option} {folder}: cannot write there ({error.strerror or error}); "
+                         "accepted: a folder this user can create and write") from None
+    return folder

@@ -27,6 +27,10 @@ def _methods(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(
             f"unknown method(s) {', '.join(unknown) or '(none given)'}; accepted: "
             f"{', '.join(available_methods())} (comma separated), or 'all'")
+    repeated = sorted({name for name in methods if methods.count(name) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"method(s) {', '.join(repeated)} given more than once; accepted: each method once")
     return methods
 
 
@@ -40,7 +44,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from sim.harness.runner import RunConfig, run, scenario_name
     from sim.harness.report import terminal_summary
 
-    out_dir = args.out or DEFAULT_RESULTS / scenario_name(args.scenario)
+    from sim.harness.atomic import prepare_output_dir
+    from sim.harness.scenario import load_scenario
+
+    load_scenario(args.scenario)  # a bad scenario is reported before any folder is made
+    out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / scenario_name(args.scenario))
     metrics = run(RunConfig(scenario=args.scenario, out_dir=str(out_dir), methods=args.methods,
                             record=not args.no_record, max_frames=args.max_frames,
                             seed=args.seed, progress=not args.quiet))
@@ -51,19 +59,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_ideal(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.ideal import IdealConfig, run_ideal
     from sim.harness.report import terminal_summary
 
+    prepare_output_dir(args.out)
     metrics = run_ideal(IdealConfig(image=args.image, out_dir=str(args.out),
                                     trajectory=args.trajectory, methods=args.methods,
-                                    n_frames=args.frames))
+                                    n_frames=args.frames, resize=args.resize))
     print(terminal_summary(metrics, args.out))
     return 0
 
 
 def _cmd_aggregate(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.report import aggregate_runs
 
+    if args.out is not None:
+        prepare_output_dir(args.out.parent or Path("."), option="--out's folder")
     table = aggregate_runs(args.runs, out_path=args.out)
     print(table)
     return 0
@@ -80,15 +93,22 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.bench import run_benchmarks
 
+    if args.out is not None:
+        prepare_output_dir(args.out.parent or Path("."), option="--out's folder")
     run_benchmarks(quick=args.quick, out_path=args.out)
     return 0
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.gate import run_gate
 
+    prepare_output_dir(args.out)
+    if args.update_baseline:
+        prepare_output_dir(args.baseline.parent or Path("."), option="--baseline's folder")
     return run_gate(baseline_path=args.baseline, update=args.update_baseline,
                     out_dir=args.out)
 
@@ -96,8 +116,10 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 
+    from sim.harness.atomic import prepare_output_dir
+
     spec = load_sweep(args.sweep_file)
-    out_dir = args.out or default_sweep_dir(spec, DEFAULT_RESULTS)
+    out_dir = prepare_output_dir(args.out or default_sweep_dir(spec, DEFAULT_RESULTS))
     try:
         result = run_sweep(spec, out_dir, backend="ray" if args.ray else "local",
                            workers=args.workers, ray_address=args.ray_address, progress=True)
@@ -143,6 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="comma-separated methods, or 'all' (default: all)")
     ideal.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "ideal" / "custom",
                        help="output folder (default: results/ideal/custom)")
+    ideal.add_argument("--resize", action="store_true",
+                       help="scale an image larger than 1280 x 1024 pixels down to fit "
+                            "(refused otherwise)")
     ideal.set_defaults(handler=_cmd_ideal)
 
     aggregate = commands.add_parser("aggregate", help="one table from several run folders")
@@ -180,12 +205,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _describe_os_error(error: OSError) -> str:
+    """One line: the file and what the system said, or the message raised with it."""
+    if error.errno is None:
+        return str(error)
+    where = f"{error.filename}: " if error.filename else ""
+    return f"{where}{error.strerror or error}"
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
     except ValueError as error:  # bad input named by the layer that found it
         print(f"egostab {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
+        print(f"egostab {args.command}: error: {_describe_os_error(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"egostab {args.command}: interrupted", file=sys.stderr)

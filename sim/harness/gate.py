@@ -41,22 +41,47 @@ def gate_metrics(metrics: dict) -> dict[str, dict[str, float]]:
     return gated
 
 
+def ci_scenario_paths() -> list[Path]:
+    """The CI scenario files, sorted by name."""
+    paths = sorted(CI_SCENARIOS_DIR.glob("*.toml"))
+    if not paths:
+        raise ValueError(f"no CI scenarios (*.toml) in {CI_SCENARIOS_DIR}")
+    return paths
+
+
+def expected_coverage() -> dict[str, tuple[str, ...]]:
+    """scenario -> the methods its run scores: what the CI set produces, known before running."""
+    from sim.harness.scenario import load_scenario
+
+    return {path.stem: tuple(load_scenario(path).evaluation.methods)
+            for path in ci_scenario_paths()}
+
+
 def run_ci_scenarios(out_dir: Path) -> dict[str, dict[str, dict[str, float]]]:
     """Run every scenario of CI_SCENARIOS_DIR (no recording); scenario -> method -> figures."""
     from sim.harness.runner import RunConfig, run
 
     results = {}
-    for path in sorted(CI_SCENARIOS_DIR.glob("*.toml")):
+    for path in ci_scenario_paths():
         metrics = run(RunConfig(scenario=str(path), out_dir=str(out_dir / path.stem),
                                 record=False))
         results[path.stem] = gate_metrics(metrics)
-    if not results:
-        raise ValueError(f"no CI scenarios (*.toml) in {CI_SCENARIOS_DIR}")
     return results
 
 
+#: Verdicts of a baseline that no longer matches the CI set: both fail the gate, because a
+#: baseline that silently lacks a figure would let that figure regress unseen.
+NOT_IN_BASELINE = "REGRESSED (not in baseline; run --update-baseline on purpose)"
+NOT_RUN = "REGRESSED (in baseline, not produced by the CI set)"
+
+
 def compare(current: dict, baseline: dict) -> list[dict]:
-    """One row per (scenario, method, metric): baseline, current, limit, verdict."""
+    """One row per (scenario, method, metric): baseline, current, limit, verdict.
+
+    A scenario or method that the CI set produces but the baseline lacks, or that the baseline
+    holds but the CI set no longer produces, is a regression: adding or removing one is what
+    ``--update-baseline`` is for.
+    """
     rows = []
     for scenario, methods in sorted(current.items()):
         for method, figures in methods.items():
@@ -65,7 +90,7 @@ def compare(current: dict, baseline: dict) -> list[dict]:
                 if base is None:
                     rows.append(dict(scenario=scenario, method=method, metric=metric,
                                      baseline=math.nan, current=value, limit=math.nan,
-                                     verdict="new (not in baseline)"))
+                                     verdict=NOT_IN_BASELINE))
                     continue
                 limit = base * (1 + REL_TOLERANCE) + ABS_TOLERANCE[metric]
                 if _is_nan(value) and not _is_nan(base):
@@ -80,7 +105,11 @@ def compare(current: dict, baseline: dict) -> list[dict]:
                                  current=value, limit=limit, verdict=verdict))
     for scenario in sorted(set(baseline) - set(current)):
         rows.append(dict(scenario=scenario, method="-", metric="-", baseline=math.nan,
-                         current=math.nan, limit=math.nan, verdict="REGRESSED (not run)"))
+                         current=math.nan, limit=math.nan, verdict=NOT_RUN))
+    for scenario in sorted(set(baseline) & set(current)):
+        for method in sorted(set(baseline[scenario]) - set(current[scenario])):
+            rows.append(dict(scenario=scenario, method=method, metric="-", baseline=math.nan,
+                             current=math.nan, limit=math.nan, verdict=NOT_RUN))
     return rows
 
 
@@ -99,13 +128,64 @@ def format_rows(rows: list[dict]) -> str:
 
 
 def read_baseline(path: Path) -> dict:
+    """The ``scenarios`` of a baseline file, checked against its schema.
+
+    A baseline is ``{"format": BASELINE_FORMAT, "scenarios": {scenario: {method: {metric:
+    number}}}}`` with at least one scenario, at least one method per scenario, and exactly the
+    metrics of ``ABS_TOLERANCE`` per method (a number, or null/NaN for a figure with no value).
+    Anything else raises ValueError naming the file and what is wrong.
+    """
+    path = Path(path)
     if not path.is_file():
         raise ValueError(f"no baseline at {path}; create it on purpose with "
                          "`egostab gate --update-baseline`")
-    document = json.loads(path.read_text(encoding="utf-8"))
-    if document.get("format") != BASELINE_FORMAT:
-        raise ValueError(f"{path}: not a baseline of format {BASELINE_FORMAT!r}")
-    return document["scenarios"]
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path}: not valid JSON ({error}); expected a baseline written by "
+                         "`egostab gate --update-baseline`") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ValueError(f"{path}: cannot be read ({error})") from None
+    if not isinstance(document, dict) or document.get("format") != BASELINE_FORMAT:
+        raise ValueError(f"{path}: not a baseline of format {BASELINE_FORMAT!r} (expected a JSON "
+                         f"object with \"format\": {BASELINE_FORMAT!r})")
+    scenarios = document.get("scenarios")
+    if not isinstance(scenarios, dict) or not scenarios:
+        raise ValueError(f"{path}: 'scenarios' must be a non-empty object "
+                         "{scenario: {method: {metric: number}}}")
+    for scenario, methods in scenarios.items():
+        if not isinstance(methods, dict) or not methods:
+            raise ValueError(f"{path}: scenarios.{scenario} must be a non-empty object "
+                             "{method: {metric: number}}")
+        for method, figures in methods.items():
+            key = f"scenarios.{scenario}.{method}"
+            if not isinstance(figures, dict) or set(figures) != set(ABS_TOLERANCE):
+                raise ValueError(f"{path}: {key} must hold exactly the metrics "
+                                 f"{', '.join(sorted(ABS_TOLERANCE))}")
+            for metric, value in figures.items():
+                if value is not None and (isinstance(value, bool)
+                                          or not isinstance(value, (int, float))):
+                    raise ValueError(f"{path}: {key}.{metric} is {value!r}; accepted: a number "
+                                     "or null")
+    return scenarios
+
+
+def check_coverage(baseline: dict, expected: dict[str, tuple[str, ...]], path: Path) -> None:
+    """Refuse, before anything runs, a baseline that does not cover exactly the CI set."""
+    problems = []
+    for scenario in sorted(set(expected) - set(baseline)):
+        problems.append(f"lacks scenario {scenario}")
+    for scenario in sorted(set(baseline) - set(expected)):
+        problems.append(f"has scenario {scenario}, which the CI set no longer runs")
+    for scenario in sorted(set(expected) & set(baseline)):
+        for method in sorted(set(expected[scenario]) - set(baseline[scenario])):
+            problems.append(f"lacks method {method} of scenario {scenario}")
+        for method in sorted(set(baseline[scenario]) - set(expected[scenario])):
+            problems.append(f"has method {method} of scenario {scenario}, which the CI set "
+                            "no longer scores")
+    if problems:
+        raise ValueError(f"{path}: the baseline does not match the CI set ({'; '.join(problems)})"
+                         "; rewrite it on purpose with `egostab gate --update-baseline`")
 
 
 def write_baseline(path: Path, results: dict) -> None:
@@ -123,7 +203,10 @@ def run_gate(baseline_path: Path, update: bool = False,
 
     Returns the exit code: 0 when nothing regressed, 1 otherwise.
     """
-    baseline = None if update else read_baseline(Path(baseline_path))
+    baseline = None
+    if not update:
+        baseline = read_baseline(Path(baseline_path))
+        check_coverage(baseline, expected_coverage(), Path(baseline_path))
     results = run_ci_scenarios(Path(out_dir))
     if update:
         write_baseline(Path(baseline_path), results)

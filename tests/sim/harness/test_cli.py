@@ -8,8 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scenarios import SCENARIOS_DIR
-from scenarios import DEFAULT_SCENARIO
+from scenarios import DEFAULT_SCENARIO, SCENARIOS_DIR
 from sim.harness.cli import build_parser, main
 from sim.harness.scenario import list_scenarios
 from stabilizer import depth_to_disparity
@@ -115,3 +114,59 @@ def test_sweep_runs_the_real_runner_and_resumes(tmp_path, capsys):
     stamps = [(run / "metrics.json").stat().st_mtime_ns for run in runs]
     assert main(["sweep", str(sweep), "--out", str(out_dir), "--workers", "2"]) == 0
     assert [(run / "metrics.json").stat().st_mtime_ns for run in runs] == stamps
+
+
+def _one_line_error(capsys, command: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"egostab {command}: error: ") and "\n" not in err, err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("scenario", ["no_such_scenario", "/no/such/file.toml"])
+def test_a_missing_scenario_is_one_line_and_status_2(scenario, tmp_path, capsys):
+    assert main(["run", scenario, "--out", str(tmp_path / "run")]) == 2
+    assert "scenario" in _one_line_error(capsys, "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_missing_sweep_file_is_one_line_and_status_2(tmp_path, capsys):
+    assert main(["sweep", str(tmp_path / "none.toml")]) == 2
+    assert "none.toml" in _one_line_error(capsys, "sweep")
+
+
+@pytest.mark.parametrize("command", [["run", "--no-record", "--max-frames", "2"],
+                                     ["ideal", "corridor", "--frames", "2"]])
+def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
+        command, tmp_path, capsys, monkeypatch):
+    import sim.harness.runner as runner
+
+    monkeypatch.setattr(runner, "run", lambda config: pytest.fail("the run started"))
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    for out, problem in ((a_file, "is not a folder"), (a_file / "below", "cannot write there"),
+                         ("/proc/egostab-test", "cannot write there")):
+        assert main([*command, "--out", str(out)]) == 2
+        assert problem in _one_line_error(capsys, command[0])
+
+
+def test_a_method_given_twice_is_refused(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--methods", "sift,ecc,sift", "--max-frames", "2"])
+    assert exit_info.value.code == 2
+    assert "sift given more than once" in capsys.readouterr().err
+
+
+def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):
+    from sim.harness.ideal import MAX_IMAGE_PIXELS, load_image
+
+    image = np.kron(depth_to_disparity(make_depth_scene(3)), np.ones((10, 10), np.uint8))
+    png = tmp_path / "large.png"
+    cv2.imwrite(str(png), image)  # 1760 x 1440 pixels
+    assert main(["ideal", str(png), "--methods", "ecc", "--frames", "2",
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "1760 x 1440 pixels is larger" in _one_line_error(capsys, "ideal")
+    resized = load_image(str(png), resize=True)
+    assert resized.size <= MAX_IMAGE_PIXELS and resized.shape[1] / resized.shape[0] == \
+        pytest.approx(1760 / 1440, rel=0.01)
+    assert set(np.unique(resized)) <= set(np.unique(image))  # nothing interpolated
