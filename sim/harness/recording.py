@@ -2,9 +2,10 @@
 
 One ``rr.RecordingStream`` per run, saved to a file (no viewer, nothing spawned; open it later
 with ``rerun path/to/recording.rrd``). The file is written under a temporary name and renamed
-when the recorder closes (sim/atomic.py), also when the run ends by an exception or Ctrl-C, so
-it always holds every frame logged before the end. rerun-sdk is pinned (0.41.0): .rrd files
-migrate only from the previous version.
+when the recorder closes (sim/harness/atomic.py), also when the run ends by an exception or
+Ctrl-C, so it always holds every frame logged before the end. rerun-sdk is pinned (0.41.0):
+.rrd files migrate only from the previous version. docs/recording.md describes the file for its
+readers: how to open it, the layout, and measured file sizes per frame stride.
 
 Entity layout (the blueprint lays these out side by side):
 
@@ -140,9 +141,8 @@ class RunRecorder:
         properties: stored as recording properties under "run" (e.g. ``scenario`` (nested
             mappings become JSON strings), ``seed``); package versions and the git commit are
             added under "provenance".
-        frame_stride: log images, depth and the camera of every ``frame_stride``-th frame
-            (a frame adds ~15 KB for clean depth, up to ~250 KB for noisy depth with five
-            methods: ``python -m sim.harness.bench recording``); scalars are logged for every frame.
+        frame_stride: log images, depth, the camera and the path of every ``frame_stride``-th
+            frame (sizes: docs/recording.md); scalars are logged for every frame.
         recording_id: rerun's recording id; random when None.
     """
 

@@ -16,8 +16,9 @@ on (``motion_blur_subframes`` > 1) the window is split into that many equal part
 is taken at the centre of each. The frame's time and camera pose are those at mid-exposure (the
 pose interpolated between the two middle renders when their number is even).
 
-Rendering is headless through EGL unless ``MUJOCO_GL`` names another backend. The ToF model and
-the sources of its figures are in :mod:`sim.world.sensor.tof_model`.
+Rendering is headless through EGL unless ``MUJOCO_GL`` names another backend (:mod:`sim` sets
+the default before mujoco is imported). The measurement model is :mod:`sim.world.sensor.tof_model`; the sensor's published
+figures, the intrinsics and the model's known gaps are in docs/sensor.md.
 """
 
 from __future__ import annotations
@@ -25,14 +26,13 @@ from __future__ import annotations
 import math
 import os
 
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.spatial.transform import Rotation, Slerp  # noqa: E402
-
-from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame  # noqa: E402
-from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFModel, ToFParams  # noqa: E402
-from stabilizer.inputs import depth_to_disparity  # noqa: E402
+from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
+from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFModel, ToFParams
+from stabilizer.inputs import depth_to_disparity
 
 #: Rendered depth range that must lie inside the model's clip planes (visual/map znear, zfar
 #: times the model extent).

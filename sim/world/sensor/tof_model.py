@@ -3,7 +3,8 @@
 Every artifact is one parameter of :class:`ToFParams` and can be switched off; ``ToFParams.noiseless()``
 switches all of them off, and then the reported depth equals the rendered depth exactly.
 
-Model, per frame (docs/sensor.md, "Artifacts of a real ToF camera"):
+Model, per frame (docs/sensor.md, "Artifacts of a real ToF camera", which also gives the
+sensor's published figures and the model's known gaps):
 
 1. Radial range r = z * sqrt(1 + x_n^2 + y_n^2) from the planar depth z the renderer gives.
 2. Amplitude A = (rho / rho_ref) * cos(theta) * (d_ref / r)^2, so A = 1 for a 99 % target head-on
@@ -12,35 +13,30 @@ Model, per frame (docs/sensor.md, "Artifacts of a real ToF camera"):
    ("flying") pixels blend a pixel's phasor with its 4-neighbours' mean (weight uniform in
    [0, ``mixed_pixel_weight``] per pixel: where an edge falls in the pixel footprint is unknown);
    motion blur averages the phasors of the sub-renders over the integration window.
-4. Systematic "wiggling": r += a * sin(2 pi r / (U / 4) + phase). The SR4000 samples the
-   correlation at 4 phases, which aliases the odd harmonics of the modulation onto a period of
-   a quarter of the unambiguous range (Lindner & Kolb 2006; Foix et al. 2011).
-5. Random noise on r: sigma = clip(sigma_ref / A, sigma_min, sigma_max): phase noise inversely
-   proportional to amplitude (Lange 2000), calibrated to the repeatability at the reference.
-6. Phase wrapping: r mod U (5.0 m at 30 MHz).
-7. Quantization: 14 significant bits over U (0.305 mm steps at 30 MHz).
+4. Systematic "wiggling": r += a * sin(2 pi r / (U / 4) + phase): 4-phase sampling aliases the
+   odd harmonics of the modulation onto a quarter of the unambiguous range.
+5. Random noise on r: sigma = clip(sigma_ref / A, sigma_min, sigma_max), phase noise inversely
+   proportional to amplitude, calibrated to the datasheet's repeatability at the reference.
+6. Phase wrapping: r mod U.
+7. Quantization: 14 significant bits over U.
 8. Validity: invalid (0) where there is no surface, the measured range is nearer than
    ``min_range_m`` or farther than ``max_range_m``, the amplitude is below ``min_amplitude``
    (too dark / too far) or above ``saturation_amplitude`` (saturated).
 9. Back to planar depth z = r / sqrt(1 + x_n^2 + y_n^2) (the driver reports Cartesian z).
 
-Sources of the default figures:
-- MESA Imaging SR4000 datasheet (rev. 5.1, 2011): 176 x 144 pixels, 43.6 x 34.6 deg FOV, 30 MHz
-  modulation (unambiguous range 5.0 m), calibrated range 0.8-5.0 m, measurements from 0.1 m,
-  absolute accuracy +/-10 mm, repeatability (1 sigma) 4 mm typical at 2 m on a 99 % target,
-  up to 54 frames/s, 14 significant bits of distance.
-- SR4000 user manual: integration time 0.3 ms + n * 0.1 ms, at most 25.8 ms.
-- Chiabrando et al., "Sensors for 3D imaging: metric evaluation and calibration of a CCD/CMOS
-  time-of-flight camera", Sensors 9 (2009): per-pixel noise on a wall at 1.3 m sigma ~ 3.7-4.0 mm,
-  wiggling of the SR4000 within about +/-10 mm over its range.
-- Lange, "3D time-of-flight distance measurement with custom solid-state image sensors" (PhD,
-  2000): phase noise ~ 1 / amplitude.
-- Lindner & Kolb, "Lateral and depth calibration of PMD-distance sensors" (ISVC 2006) and Foix,
-  Alenya & Torras, "Lock-in time-of-flight (ToF) cameras: a survey" (IEEE Sensors J. 2011):
-  wiggling as a periodic error, mixed pixels, motion artifacts.
-Choices of this model, not datasheet figures: reflectivity 0.8 for the whole scene (matte indoor
-surfaces), the confidence threshold, the saturation threshold, the noise floor and cap, the mixed
-pixel weight and the default integration time (5 ms, inside the documented range).
+Defaults follow the datasheet; the scene's reflectivity, the confidence and saturation
+thresholds, the noise floor and cap, the mixed-pixel weight and the integration time are choices
+of this model (docs/sensor.md).
+
+References:
+    MESA Imaging, SR4000 data sheet (rev. 5.1, 2011) and user manual.
+    Chiabrando, Chiabrando, Piatti & Rinaudo, "Sensors for 3D imaging: metric evaluation and
+    calibration of a CCD/CMOS time-of-flight camera", Sensors 9 (2009).
+    Lange, "3D time-of-flight distance measurement with custom solid-state image sensors in
+    CMOS/CCD technology", PhD thesis, University of Siegen (2000).
+    Lindner & Kolb, "Lateral and depth calibration of PMD-distance sensors", ISVC 2006.
+    Foix, Alenya & Torras, "Lock-in time-of-flight (ToF) cameras: a survey", IEEE Sensors J. 11
+    (2011).
 """
 
 from __future__ import annotations
@@ -60,7 +56,7 @@ MAX_FPS = 54.0
 
 @dataclass(frozen=True)
 class ToFParams:
-    """Parameters of the SR4000 model; defaults are the datasheet's (see the module docstring).
+    """Parameters of the SR4000 model; defaults are the datasheet's (docs/sensor.md).
 
     Switching an effect off: ``phase_wrapping=False``; ``noise_sigma_ref_m=0``;
     ``wiggle_amplitude_m=0``; ``quantization_bits=0``; ``mixed_pixel_weight=0``;
