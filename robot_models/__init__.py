@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-#: Folder of the 0.6 m, 24-DOF humanoid carrying the SR4000: humanoid.xml, scene.xml, README.md.
+#: Folder of the 0.6 m, 24-DOF humanoid carrying the SR4000: humanoid.xml, scene.xml, README.md,
+#: CHANGELOG.md and humanoid.png (the README's picture, ``python -m sim.world.render_robot``).
 HUMANOID_DIR = Path(__file__).resolve().parent / "humanoid"
 
 

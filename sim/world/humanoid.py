@@ -29,7 +29,8 @@ SIDES = ("l", "r")
 
 
 def humanoid_mjcf() -> mjcf.RootElement:
-    """The robot's MJCF without its free joint, ready for ``arena.attach`` (see sim.world)."""
+    """The robot's MJCF without its free joint, ready for ``arena.attach``
+    (sim.world.assembly.assemble adds the free joint to the attachment frame)."""
     robot = mjcf.from_path(str(humanoid_path("humanoid.xml")))
     robot.model = MODEL_NAME
     # The standalone file carries a free joint so scene.xml works alone; once attached, the

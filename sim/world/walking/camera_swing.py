@@ -5,6 +5,9 @@ frame of the current gait cycle (the paper's reference frame, docs/design.md) is
 (about the camera x axis), yaw (about y) and roll (about z, the optical axis). For a distant
 scene these move the image by about x = fx tan(yaw), y = fy tan(pitch) pixels and rotate it by
 the roll: the magnitudes the paper reports for its robot (x +-40 px, y 2-32 px, +-12 deg).
+
+Run ``python -m sim.world.walking.camera_swing [gaits] [--seconds S]``; the figures of both
+presets are in docs/walking.md, "Camera swing".
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The walking controller: commands + IMU -> position-servo targets at a fixed control rate.
 
-Per control period (docs/walking.md, "the standard recipe"):
+Per control period (docs/walking.md, "One control period"):
 1. the footstep planner extends the plan and gives the ZMP reference over the preview horizon;
 2. ZMP preview control (Kajita 2003) gives the centre-of-mass position;
 3. the torso is placed so the whole robot's CoM (computed by MuJoCo's kinematics for the last

@@ -4,8 +4,8 @@ A walking "centre" pose advances by (v T, omega T) per step; each step puts the 
 half a step width to its side of the new centre, so successive footprints are one step length
 apart and the feet turn by omega T per step (in place when v = 0). A step starts with a
 double-support phase in which the ZMP reference moves from the previous support foot to the new
-one, then the other foot swings along a cycloid (docs/walking.md, recipe steps 1-2). With a zero
-command the next step puts the feet side by side and the ZMP returns between them.
+one, then the other foot swings along a cycloid. With a zero command the next step puts the feet
+side by side and the ZMP returns between them (docs/walking.md, "The standard recipe", steps 1-2).
 """
 
 from __future__ import annotations

@@ -8,7 +8,9 @@ from dataclasses import dataclass, fields
 
 @dataclass(frozen=True)
 class GaitParams:
-    """Parameters of the ZMP-preview walking gait (docs/walking.md, "the standard recipe").
+    """Parameters of the ZMP-preview walking gait.
+
+    Each parameter's role and the presets' values: docs/walking.md, "Gait parameters and presets".
 
     Attributes:
         step_period_s: duration of one step (a gait cycle is two steps), seconds.
@@ -81,7 +83,7 @@ class GaitParams:
 #: "default": a steady, moderate gait. "paper_like": the sway-heavy gait of the paper's robot,
 #: whose head camera moves by about +-40 px in x, 2-32 px in y and +-12 deg in rotation over a
 #: gait cycle (Kang, Zhang & Park 2009, section III-B); its amplitudes were tuned against the
-#: measured camera swing (robot_models/humanoid/README.md).
+#: measured camera swing (docs/walking.md, "Camera swing").
 GAIT_PRESETS: dict[str, GaitParams] = {
     "default": GaitParams(),
     "paper_like": GaitParams(

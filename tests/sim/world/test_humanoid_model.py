@@ -1,13 +1,16 @@
-"""The humanoid's MJCF model: structure, mass, height, camera and the assembled world (issue 3)."""
+"""The humanoid's MJCF model (robot_models/humanoid/README.md): structure, mass, height, camera,
+the assembled world and the README's picture."""
 
 import math
 import os
 
+import cv2
 import mujoco
 import numpy as np
 import pytest
 
 from robot_models import HUMANOID_DIR, humanoid_path
+from sim.world import render_robot
 from sim.world.camera import SR4000_INTRINSICS
 from sim.world.humanoid import CAMERA_NAME, MODEL_NAME, humanoid_mjcf, robot_body_ids
 from sim.world.walking import RobotSimulation
@@ -158,3 +161,28 @@ def test_rendered_field_of_view_matches_the_sr4000():
     bar_rows = np.flatnonzero(near[: int(k.cy), round(k.cx)])   # above the horizon
     assert pole_cols.mean() == pytest.approx(k.cx - k.fx * math.tan(left), abs=1.0)
     assert bar_rows.mean() == pytest.approx(k.cy - k.fy * math.tan(up), abs=1.0)
+
+
+def test_render_robot_writes_a_picture_of_the_requested_size(tmp_path, capsys):
+    path = tmp_path / "robot.png"
+    render_robot.main(["--out", str(path), "--width", "60", "--height", "80"])
+    assert str(path) in capsys.readouterr().out
+    image = cv2.imread(str(path))
+    assert image.shape == (80, 60, 3)
+    assert image.std() > 10                              # not a blank frame
+    # The robot (dark grey) stands in the middle, against the lighter sky and floor.
+    middle_column = image[:, 25:35].mean(axis=(1, 2))
+    assert middle_column.min() < 0.6 * middle_column.max()
+
+
+def test_the_readme_shows_the_rendered_picture():
+    readme = (HUMANOID_DIR / "README.md").read_text()
+    assert "humanoid.png" in readme and "python -m sim.world.render_robot" in readme
+    assert render_robot.DEFAULT_PICTURE_PATH == HUMANOID_DIR / "humanoid.png"
+    assert render_robot.DEFAULT_PICTURE_PATH.is_file()
+
+
+@pytest.mark.parametrize("bad", [{"width": 0}, {"height": 4096}, {"distance_m": 0.0}])
+def test_render_robot_rejects_bad_sizes(bad):
+    with pytest.raises(ValueError):
+        render_robot.render_humanoid(**bad)

@@ -1,4 +1,5 @@
-"""The humanoid walks under physics: issue 3's acceptance tests, and the controller's parts."""
+"""The humanoid walks under physics: the acceptance walk of docs/walking.md, and the controller's
+parts."""
 
 import itertools
 import math
@@ -29,7 +30,7 @@ def heading_change(sim, start_heading):
 
 
 def walk_turn_stop(sim):
-    """Issue 3's run: stand, walk 3 m forward, turn 90 deg in place, stop and stand 2 s.
+    """The acceptance walk: stand, walk 3 m forward, turn 90 deg in place, stop and stand 2 s.
 
     Returns the per-period log of the forward walk (time, camera matrix, foot contacts) and
     the times each phase ended (None if it timed out).
