@@ -9,15 +9,16 @@ import numpy as np
 
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
+from stabilizer.t2fuzzy_refinements import Refinements
 
 #: Method name -> ("module:class", default parameters). Each class is built as
 #: ``cls(reference, **params)`` (the reference analysed once) and has
-#: ``estimate(current) -> Motion``. "t2fuzzy_paper" is the paper's stages alone, without the
-#: documented refinements of "t2fuzzy", so that what the refinements add stays measurable.
+#: ``estimate(current) -> Motion``. "t2fuzzy_paper" is the paper's pipeline as written, without
+#: the refinements of "t2fuzzy" (stabilizer.t2fuzzy_refinements), so that what the refinements
+#: add stays measurable.
 _METHODS = {
     "t2fuzzy": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {}),
-    "t2fuzzy_paper": ("stabilizer.t2fuzzy:T2FuzzyEstimator",
-                      {"refine_rotation": False, "refine_iterations": 0, "overlap_passes": 0}),
+    "t2fuzzy_paper": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {"refinements": Refinements.off()}),
     "sift": ("stabilizer.peers.sift:SiftEstimator", {}),
     "icp": ("stabilizer.peers.icp:IcpEstimator", {}),
     "ecc": ("stabilizer.peers.ecc:EccEstimator", {}),
@@ -45,7 +46,10 @@ class Stabilizer:
     Args:
         reference: uint8 disparity-like image (0 = invalid) or float depth in metres.
         method: one of :func:`available_methods`; default ``"t2fuzzy"`` (Kang et al. 2009).
-        **params: the method's own parameters (see each estimator's docstring).
+        **params: the method's own parameters, passed to its estimator class (see its
+            docstring); for example ``refinements=Refinements(rotation_search=False)`` or
+            ``translation=TranslationParams(max_shift_px=20)`` for the ``t2fuzzy`` methods
+            (:mod:`stabilizer.t2fuzzy`).
     """
 
     def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", **params: Any):

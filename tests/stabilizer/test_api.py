@@ -4,6 +4,9 @@ import numpy as np
 import pytest
 
 import stabilizer
+from stabilizer.motion import Motion, apply_motion
+from stabilizer.t2fuzzy import TranslationParams
+from stabilizer.t2fuzzy_refinements import Refinements
 from stabilizer.testing import make_depth_scene
 
 REFERENCE = stabilizer.depth_to_disparity(make_depth_scene(0))
@@ -39,7 +42,17 @@ def test_unknown_parameter_is_rejected():
 
 def test_bad_parameter_value_is_a_value_error():
     with pytest.raises(ValueError, match="max_shift_px"):
-        stabilizer.estimate(REFERENCE, REFERENCE, max_shift_px=80)
+        stabilizer.estimate(REFERENCE, REFERENCE,
+                            translation=TranslationParams(max_shift_px=80))
+
+
+def test_method_parameters_reach_the_estimator():
+    """``t2fuzzy_paper`` is ``t2fuzzy`` with its refinements off."""
+    current = apply_motion(REFERENCE, Motion(5.0, 6.0, -4.0))
+    paper = stabilizer.estimate(REFERENCE, current, method="t2fuzzy_paper")
+    off = stabilizer.estimate(REFERENCE, current, refinements=Refinements.off())
+    assert paper.as_tuple() == off.as_tuple()
+    assert off.as_tuple() != stabilizer.estimate(REFERENCE, current).as_tuple()
 
 
 @pytest.mark.parametrize("current", [np.full(REFERENCE.shape, 90, np.uint8),
