@@ -1,20 +1,27 @@
-"""Stage 4 of Kang, Zhang & Park (2009): orientation of point sets by direct least-squares
-ellipse fitting (Fitzgibbon, Pilu & Fisher 1999) in the numerically stable form of Halir &
-Flusser (1998), the paper's reference [3].
+"""Stage 4 of Kang, Zhang & Park (2009), section II-C: the orientation of each point set from
+its direct least-squares ellipse.
 
-The conic a x^2 + b xy + c y^2 + d x + e y + f = 0 minimising the algebraic distance under the
-constraint 4ac - b^2 = 1. Halir & Flusser split the design matrix into its quadratic part
-D1 = [x^2, xy, y^2] and linear part D2 = [x, y, 1]; with S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 and
-T = -S3^-1 S2', the quadratic coefficients are the eigenvector of C1^-1 (S1 + S2 T) with
-4ac - b^2 > 0, and the linear ones are T times it. Points are centred and scaled per set first.
+"A numerically stable direct least-square method fitting an ellipse [3] to a set of data points
+was used to calculate the rotation angle": every wavelet point set of every object (stage 3) is
+fitted with an ellipse, and the change of its major-axis angle between the reference and the
+current frame is one estimate of the rotation (:func:`axis_angle_difference`).
+
+The fit (Fitzgibbon, Pilu & Fisher 1999) is the conic a x^2 + b xy + c y^2 + d x + e y + f = 0
+that minimises the algebraic distance under the constraint 4ac - b^2 = 1, solved in the
+numerically stable form of Halir & Flusser (1998), the paper's reference [3]: the design matrix
+is split into its quadratic part D1 = [x^2, xy, y^2] and linear part D2 = [x, y, 1]; with
+S1 = D1'D1, S2 = D1'D2, S3 = D2'D2 and T = -S3^-1 S2', the quadratic coefficients are the
+eigenvector of C1^-1 (S1 + S2 T) with 4ac - b^2 > 0, and the linear ones are T times it. Points
+are centred and scaled per set first.
 
 Every point set of a frame is fitted at once: the scatter matrices are sums of monomials up to
-degree four, accumulated per set with ``np.bincount``, and the 3 x 3 eigenproblems are solved as
-one stacked call. Tests check the result against ``cv2.fitEllipseDirect`` and scikit-image.
+degree four, accumulated per set, and the 3 x 3 eigenproblems are solved as one stacked call.
+Tests check the result against ``cv2.fitEllipseDirect`` and scikit-image.
 
 Angles follow the image frame (x right, y down): the angle of the major axis is measured from +x
 toward +y, in [0, 180) degrees, as ``cv2.ellipse`` draws it. An axis has no sign, so an angle
-is only defined modulo 180 degrees; nearly circular fits carry no angle at all.
+is only defined modulo 180 degrees; nearly circular fits carry no angle at all
+(docs/method.md, section 4).
 """
 
 from __future__ import annotations
@@ -44,12 +51,18 @@ MIN_POINTS = 6
 class EllipseFits:
     """Per-set results of :func:`fit_ellipses`; entries of sets with ``valid`` False are NaN.
 
-    Attributes:
-        valid: the set had enough points and its best conic is a real ellipse.
-        oriented: valid and elongated enough (axis ratio >= the threshold) to carry an angle.
-        angle_deg: angle of the major axis from +x toward +y, in [0, 180).
-        centre_x, centre_y, half_major, half_minor: the ellipse in image pixels.
-        n_points: points in each set.
+    Attributes
+    ----------
+    valid : (n_sets,) ndarray of bool
+        The set had at least :data:`MIN_POINTS` points and its best conic is a real ellipse.
+    oriented : (n_sets,) ndarray of bool
+        Valid and elongated enough (axis ratio >= ``min_axis_ratio``) to carry an angle.
+    angle_deg : (n_sets,) ndarray of float
+        Angle of the major axis from +x toward +y, in [0, 180).
+    centre_x, centre_y, half_major, half_minor : (n_sets,) ndarray of float
+        The ellipse in image pixels.
+    n_points : (n_sets,) ndarray of int
+        Points in each set.
     """
 
     valid: np.ndarray
@@ -71,17 +84,64 @@ class EllipseFits:
 
 def fit_ellipses(x: np.ndarray, y: np.ndarray, set_id: np.ndarray, n_sets: int,
                  min_axis_ratio: float = 1.05, weight: np.ndarray | None = None) -> EllipseFits:
-    """Direct least-squares ellipse of every point set (Halir & Flusser), vectorised.
+    """Direct least-squares ellipse of every point set, all sets at once.
 
-    Args:
-        x, y: point coordinates in image pixels, shape (P,).
-        set_id: integer set index of each point, in [0, n_sets).
-        n_sets: number of sets.
-        min_axis_ratio: fits with major / minor half-axis below this are too round to orient.
-        weight: optional non-negative weight of each point in the least-squares sum.
+    Parameters
+    ----------
+    x, y : (P,) ndarray of float or int
+        Point coordinates in image pixels (finite).
+    set_id : (P,) ndarray of int
+        Set index of each point, in [0, n_sets).
+    n_sets : int
+        Number of sets (>= 0); sets without points come out invalid.
+    min_axis_ratio : float, optional
+        Fits whose major / minor half-axis ratio is below this are too round to orient
+        (``oriented`` False). Default 1.05 (the paper gives none; docs/method.md, section 4).
+    weight : (P,) ndarray of float, optional
+        Non-negative weight of each point in the least-squares sum; default 1 for every point.
+
+    Returns
+    -------
+    EllipseFits
+        Per-set arrays of length ``n_sets``.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-C.
+    .. [2] A. Fitzgibbon, M. Pilu and R. B. Fisher, "Direct least square fitting of ellipses",
+           IEEE Trans. PAMI 21(5), 476-480, 1999.
+    .. [3] R. Halir and J. Flusser, "Numerically stable direct least squares fitting of
+           ellipses", WSCG 1998.
     """
-    set_id = np.asarray(set_id, dtype=np.intp)
-    weight = np.ones(len(x)) if weight is None else np.asarray(weight, dtype=np.float64)
+    x, y = np.asarray(x), np.asarray(y)
+    set_id = np.asarray(set_id)
+    if x.ndim != 1 or x.shape != y.shape or x.shape != set_id.shape:
+        raise ValueError(f"x, y and set_id must be 1-D arrays of one length; got shapes "
+                         f"{x.shape}, {y.shape} and {set_id.shape}")
+    if x.dtype.kind not in "iuf" or y.dtype.kind not in "iuf":
+        raise ValueError(f"x and y must be real-valued (integer or float) arrays; got dtypes "
+                         f"{x.dtype} and {y.dtype}")
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise ValueError("x and y must be finite; got NaN or infinite coordinates")
+    if isinstance(n_sets, bool) or not isinstance(n_sets, (int, np.integer)) or n_sets < 0:
+        raise ValueError(f"n_sets must be an integer >= 0; got {n_sets!r}")
+    if not np.issubdtype(set_id.dtype, np.integer):
+        raise ValueError(f"set_id must be an integer array; got dtype {set_id.dtype}")
+    if set_id.size and (set_id.min() < 0 or set_id.max() >= n_sets):
+        raise ValueError(f"set_id must lie in [0, n_sets) = [0, {n_sets}); got values from "
+                         f"{set_id.min()} to {set_id.max()}")
+    if not min_axis_ratio >= 1.0:
+        raise ValueError(f"min_axis_ratio must be >= 1 (major / minor); got {min_axis_ratio}")
+    if weight is not None:
+        weight = np.asarray(weight, dtype=np.float64)
+        if weight.shape != x.shape:
+            raise ValueError(f"weight must have the shape of x, {x.shape}; got {weight.shape}")
+        if not (np.isfinite(weight).all() and (weight >= 0).all()):
+            raise ValueError("weight must be finite and non-negative")
+    set_id = set_id.astype(np.intp, copy=False)
+    weight = np.ones(len(x)) if weight is None else weight
     # Sorted by set, every per-set sum is one np.add.reduceat over contiguous runs.
     order = np.argsort(set_id, kind="stable")
     set_id, x, y, weight = set_id[order], x[order], y[order], weight[order]
@@ -189,5 +249,19 @@ def axis_angle_difference(reference_deg: np.ndarray, current_deg: np.ndarray) ->
     In image coordinates (y down) a counter-clockwise rotation by theta lowers an axis angle
     measured from +x toward +y by theta, so theta = reference - current; axes are undirected,
     hence the 180-degree period.
+
+    Parameters
+    ----------
+    reference_deg, current_deg : array_like of float
+        Major-axis angles (degrees, as :attr:`EllipseFits.angle_deg`) of matching sets.
+
+    Returns
+    -------
+    ndarray of float
+        One rotation estimate (degrees) per pair, the inputs of stage 5.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, section II-C and Fig. 6.
     """
     return wrap_angle_deg(np.asarray(reference_deg) - np.asarray(current_deg), period=180.0)

@@ -1,7 +1,9 @@
-"""Stage 6 of Kang, Zhang & Park (2009): translation by fast normalised cross-correlation.
+"""Stage 6 of Kang, Zhang & Park (2009), section II-C: translation by fast normalised
+cross-correlation.
 
-The paper's eq. (7) is Lewis's (1995) normalised cross-correlation of a template t with the image
-f under it,
+After the rotation is compensated, the translation is where the reference's central region
+correlates best with the current frame. The paper's eq. (7) is Lewis's (1995) normalised
+cross-correlation of a template t with the image f under it,
 
     gamma(u, v) = sum (f - mean_f_uv)(t - mean_t)
                   / sqrt(sum (f - mean_f_uv)^2 * sum (t - mean_t)^2),
@@ -32,9 +34,18 @@ import numpy as np
 class TemplateMatch:
     """Where the template's top-left corner lies in the image (sub-pixel), and the NCC there.
 
-    ``at_border`` is True when the integer peak lies on the edge of the search range: the true
-    match may be outside it, and that axis is not refined. ``height`` is the peak value of the
-    fitted parabolas (a smooth function of the image motion, unlike the sampled ``peak``).
+    Attributes
+    ----------
+    x, y : float
+        Sub-pixel position of the template's top-left corner (NaN when undefined).
+    peak : float
+        The largest sampled NCC, eq. (7).
+    at_border : bool
+        The integer peak lies on the edge of the search range: the true match may be outside
+        it, and that axis is not refined.
+    height : float
+        The peak value of the fitted parabolas (a smooth function of the image motion, unlike
+        the sampled ``peak``).
     """
 
     x: float
@@ -45,9 +56,19 @@ class TemplateMatch:
 
 
 def parabolic_vertex(c_minus: float, c_0: float, c_plus: float) -> tuple[float, float]:
-    """Offset (clipped to +-0.5) and height of the vertex of the parabola through the samples.
+    """Offset and height of the vertex of the parabola through three equally spaced samples.
 
-    Without a strict finite maximum at the centre the offset is 0 and the height ``c_0``.
+    delta = (c_minus - c_plus) / (2 (c_minus - 2 c_0 + c_plus)), clipped to +-0.5.
+
+    Parameters
+    ----------
+    c_minus, c_0, c_plus : float
+        Samples at -1, 0 and +1.
+
+    Returns
+    -------
+    offset, height : float
+        The vertex; without a strict finite maximum at the centre, 0 and ``c_0``.
     """
     c_minus, c_0, c_plus = float(c_minus), float(c_0), float(c_plus)  # plain floats: fast
     curvature = c_minus - 2.0 * c_0 + c_plus
@@ -59,17 +80,38 @@ def parabolic_vertex(c_minus: float, c_0: float, c_plus: float) -> tuple[float, 
 
 def match_template(image: np.ndarray, template: np.ndarray,
                    mask: np.ndarray | None = None) -> TemplateMatch:
-    """Best match of ``template`` in ``image`` by TM_CCOEFF_NORMED with sub-pixel refinement.
+    """Best match of ``template`` in ``image`` by normalised cross-correlation, sub-pixel.
 
-    Args:
-        image: 2-D uint8 or float32 search image.
-        template: 2-D array of the same dtype, no larger than ``image``.
-        mask: optional template-sized mask; zero entries are left out of the correlation.
+    Parameters
+    ----------
+    image : (H, W) ndarray of uint8 or float32
+        Search image.
+    template : (h, w) ndarray
+        Of the same dtype, h <= H and w <= W.
+    mask : (h, w) ndarray, optional
+        Zero entries are left out of the correlation.
 
-    Returns:
+    Returns
+    -------
+    TemplateMatch
         The match; ``peak`` is NaN when the correlation is undefined everywhere (a flat
         template or image).
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-C, eq. (7).
+    .. [2] J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995, 120-123.
     """
+    if image.ndim != 2 or template.ndim != 2 or image.dtype != template.dtype:
+        raise ValueError(f"image and template must be 2-D arrays of one dtype; got "
+                         f"{image.dtype} {image.shape} and {template.dtype} {template.shape}")
+    if template.shape[0] > image.shape[0] or template.shape[1] > image.shape[1]:
+        raise ValueError(f"template {template.shape} must be no larger than image {image.shape}")
+    if mask is not None and mask.shape != template.shape:
+        raise ValueError(f"mask must have the template's shape {template.shape}; got "
+                         f"{mask.shape}")
     mask_u8 = None if mask is None else (mask > 0).view(np.uint8)
     _, spread = cv2.meanStdDev(template, mask=mask_u8)
     if not spread[0, 0] > 0:  # OpenCV scores a flat (or fully masked) template 1 everywhere
@@ -107,19 +149,38 @@ class RotatedTemplate:
     of the rotated reference's central region in the current frame is (dx, dy) directly. Only
     the template region is warped (bilinear); invalid reference pixels are masked out.
 
-    Args:
-        reference: disparity-like reference (0 = invalid), uint8 or float.
-        margin: template = the region ``margin`` pixels in from each side; it is also the
-            largest shift found along each axis.
-        centre: centre of rotation in this image's pixels; default the image centre (another
-            one for a reduced-resolution copy of a frame, whose centre maps back to the full
-            frame's).
-        valid: mask of measured reference pixels; default ``reference > 0``.
+    Parameters
+    ----------
+    reference : (H, W) ndarray of uint8 or float
+        Disparity-like reference, 0 = invalid.
+    margin : int
+        Template = the region ``margin`` pixels in from each side; it is also the largest shift
+        found along each axis. 0 <= 2 ``margin`` < min(H, W).
+    centre : (float, float), optional
+        Centre of rotation in this image's pixels; default the image centre (another one for a
+        reduced-resolution copy of a frame, whose centre maps back to the full frame's).
+    valid : (H, W) ndarray of bool, optional
+        Mask of measured reference pixels; default ``reference > 0``.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, section II-C: "After proceeding the
+           rotation compensation, rotated image is used as the input data for the translation
+           compensation", eq. (7).
+    .. [2] J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995, 120-123.
     """
 
     def __init__(self, reference: np.ndarray, margin: int,
                  centre: tuple[float, float] | None = None, valid: np.ndarray | None = None):
+        if np.ndim(reference) != 2:
+            raise ValueError(f"reference must be a 2-D image; got shape {np.shape(reference)}")
         height, width = reference.shape
+        if not 0 <= 2 * int(margin) < min(height, width):
+            raise ValueError(f"margin must be in [0, {(min(height, width) - 1) // 2}] for a "
+                             f"{height} x {width} reference; got {margin}")
+        if valid is not None and np.shape(valid) != reference.shape:
+            raise ValueError(f"valid must have the reference's shape {reference.shape}; got "
+                             f"{np.shape(valid)}")
         self.margin = int(margin)
         self.size = (width - 2 * self.margin, height - 2 * self.margin)
         self._reference = reference.astype(np.float32)
@@ -150,10 +211,24 @@ class RotatedTemplate:
 
     def match(self, current: np.ndarray, angle_deg: float,
               near: tuple[float, float] | None = None, radius: int = 2) -> TemplateMatch:
-        """Shift (dx, dy) of the current float32 frame for rotation ``angle_deg``.
+        """Shift (dx, dy) of the current frame for the rotation ``angle_deg``.
 
-        With ``near`` = a previous (dx, dy), only shifts within ``radius`` pixels of it are
-        searched (cheap); otherwise the whole +-margin range.
+        Parameters
+        ----------
+        current : (H, W) ndarray of float32
+            The current frame, the reference's size.
+        angle_deg : float
+            Rotation (Motion convention) the template is turned by before matching.
+        near : (float, float), optional
+            A previous (dx, dy): only shifts within ``radius`` pixels of it are searched
+            (cheap). Default: the whole +-``margin`` range.
+        radius : int, optional
+            Half-width of the search around ``near``. Default 2.
+
+        Returns
+        -------
+        TemplateMatch
+            ``x``, ``y`` are the shift (dx, dy).
         """
         template, mask = self.template(angle_deg)
         left = top = 0

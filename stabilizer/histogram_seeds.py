@@ -1,4 +1,7 @@
-"""Stage 1 of Kang, Zhang & Park (2009), section II-B: number of clusters and their seeds.
+"""Stage 1 of Kang, Zhang & Park (2009), section II-B: the number of clusters and their seeds.
+
+The segmentation (stage 2, :mod:`stabilizer.it2fcm`) needs to know how many objects a disparity
+image holds and where to start their centres. The paper reads both off the gray-level histogram:
 
 "The number of peaks in the histogram of an image, which is bigger than the regular ratio for the
 whole pixel number of an image in a domain interval of 20, is set as the number of cluster seeds.
@@ -28,9 +31,12 @@ N_LEVELS = 256
 class ClusterSeeds:
     """Result of stage 1.
 
-    Attributes:
-        seeds: ascending gray-level seeds, one per cluster (empty if there is no valid pixel).
-        level_counts: length-256 histogram of the valid pixels (``level_counts[0]`` is 0).
+    Attributes
+    ----------
+    seeds : (C,) ndarray of float
+        Ascending gray-level seeds, one per cluster (empty if there is no valid pixel).
+    level_counts : (256,) ndarray of float
+        Histogram of the valid pixels (``level_counts[0]`` is 0).
     """
 
     seeds: np.ndarray
@@ -42,18 +48,48 @@ class ClusterSeeds:
 
 
 def valid_level_histogram(image: np.ndarray) -> np.ndarray:
-    """Counts of gray levels 0..255 with level 0 (invalid pixels) zeroed."""
+    """Counts of gray levels 0..255 with level 0 (invalid pixels) zeroed.
+
+    Parameters
+    ----------
+    image : (H, W) uint8 ndarray
+        Disparity-like image, 0 = no measurement.
+
+    Returns
+    -------
+    (256,) ndarray of float
+        The histogram of the valid pixels.
+    """
+    _check_disparity(image)
     counts = cv2.calcHist([image], [0], None, [N_LEVELS], [0, N_LEVELS]).ravel().astype(np.float64)
     counts[0] = 0.0
     return counts
 
 
+def _check_disparity(image: np.ndarray) -> None:
+    if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
+        raise ValueError(f"image must be a 2-D uint8 disparity-like array (0 = invalid); got "
+                         f"{getattr(image, 'dtype', type(image).__name__)} of shape "
+                         f"{np.shape(image)}")
+
+
 class HistogramSeeds:
     """Cluster count and seeds from the histogram peaks of a disparity-like image.
 
-    Args:
-        bin_width: width of the histogram bins in gray levels; paper: 20.
-        min_ratio: a peak bin must hold more than this fraction of the valid pixels; paper: 2%.
+    Parameters
+    ----------
+    bin_width : int, optional
+        Width of the histogram bins in gray levels. Default 20, the paper's "domain interval
+        of 20".
+    min_ratio : float, optional
+        A peak bin must hold more than this fraction of the valid pixels. Default 0.02, the
+        paper's "ratio was set at 2%".
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-B (the text after eq. (5)).
     """
 
     def __init__(self, bin_width: int = 20, min_ratio: float = 0.02):
@@ -68,11 +104,34 @@ class HistogramSeeds:
         self._n_bins = int(self._bin_of_level[-1]) + 1
 
     def __call__(self, image: np.ndarray) -> ClusterSeeds:
-        """Seeds of a uint8 image (validated by the caller)."""
+        """Seeds of a disparity-like image.
+
+        Parameters
+        ----------
+        image : (H, W) uint8 ndarray
+            Disparity-like image, 0 = no measurement.
+
+        Returns
+        -------
+        ClusterSeeds
+        """
         return self.from_counts(valid_level_histogram(image))
 
     def from_counts(self, level_counts: np.ndarray) -> ClusterSeeds:
-        """Seeds from a length-256 histogram of valid levels (``level_counts[0]`` ignored)."""
+        """Seeds from a histogram of valid levels.
+
+        Parameters
+        ----------
+        level_counts : (256,) ndarray
+            Pixel count of every gray level; ``level_counts[0]`` (invalid) is ignored.
+
+        Returns
+        -------
+        ClusterSeeds
+        """
+        if np.shape(level_counts) != (N_LEVELS,):
+            raise ValueError(f"level_counts must be a histogram of {N_LEVELS} gray levels; got "
+                             f"shape {np.shape(level_counts)}")
         counts = level_counts[1:]
         total = counts.sum()
         if total <= 0:

@@ -1,7 +1,9 @@
 """Input checks and the one depth -> disparity-like mapping used everywhere.
 
-The stabilizer takes 8-bit disparity-like images: brighter = closer, 0 = no measurement.
-Metric depth (float, metres) is converted by :func:`depth_to_disparity`.
+The stabilizer takes 8-bit disparity-like images, as the paper's input is a disparity map with
+256 gray levels, "the brighter levels representing the points closer to the camera" (Kang, Zhang
+& Park 2009, section III-A); 0 = no measurement. Metric depth (float, metres), as a ToF camera
+gives it, is converted by :func:`depth_to_disparity` (docs/method.md, section 0).
 """
 
 from __future__ import annotations
@@ -23,10 +25,25 @@ def depth_to_disparity(
     disparity of a stereo pair does (docs/method.md, section 0). Pixels that are not finite,
     not positive, nearer than ``near_m`` or farther than ``far_m`` are 0 (invalid).
 
-    Args:
-        depth_m: H x W float array of depth in metres (NaN, inf, 0 = no measurement).
-        near_m: depth mapped to 255; default 0.5 m.
-        far_m: largest depth kept; default 10 m.
+    Parameters
+    ----------
+    depth_m : (H, W) ndarray of float32 or float64
+        Depth in metres (NaN, inf, 0 = no measurement).
+    near_m : float, optional
+        Depth mapped to 255. Default 0.5 m (the SR4000's near limit of calibrated range).
+    far_m : float, optional
+        Largest depth kept. Default 10 m.
+
+    Returns
+    -------
+    (H, W) ndarray of uint8
+        The disparity-like image, 0 = invalid.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section III-A (the disparity maps' 256 gray levels).
     """
     depth = np.asarray(depth_m)
     if depth.ndim != 2:
@@ -46,9 +63,19 @@ def depth_to_disparity(
 def as_disparity(image: np.ndarray, name: str = "image") -> np.ndarray:
     """Check an input frame and return it as a uint8 disparity-like image.
 
-    Accepted: a 2-D uint8 disparity-like image (0 = invalid), or a 2-D float32/float64 depth
-    image in metres (converted by :func:`depth_to_disparity`). Anything else is a ValueError
-    that says what was given and what is accepted.
+    Parameters
+    ----------
+    image : ndarray
+        A 2-D uint8 disparity-like image (0 = invalid), or a 2-D float32/float64 depth image
+        in metres (converted by :func:`depth_to_disparity`), at least 8 x 8. Anything else is
+        a ValueError that says what was given and what is accepted.
+    name : str, optional
+        What to call the frame in error messages. Default ``"image"``.
+
+    Returns
+    -------
+    (H, W) ndarray of uint8
+        A plain ndarray (array subclasses are viewed as one).
     """
     if not isinstance(image, np.ndarray):
         raise ValueError(f"{name} must be a numpy array; got {type(image).__name__}")
@@ -71,6 +98,7 @@ def as_disparity(image: np.ndarray, name: str = "image") -> np.ndarray:
 
 
 def check_same_shape(reference: np.ndarray, current: np.ndarray) -> None:
+    """ValueError unless the two frames have the same shape."""
     if reference.shape != current.shape:
         raise ValueError(
             f"reference and current frames must have the same shape; "

@@ -1,4 +1,10 @@
-"""Stage 2 of Kang, Zhang & Park (2009): interval type-2 fuzzy c-means segmentation.
+"""Stage 2 of Kang, Zhang & Park (2009), section II-B: interval type-2 fuzzy c-means
+segmentation of the disparity image into objects.
+
+Each gray level gets an interval of memberships to every cluster, from two fuzzifiers m1 < m2
+(the paper's eqs. (1)-(3)); the cluster centres are the type-reduced, defuzzified centroids of
+those intervals (eqs. (4)-(5)); each level takes the cluster it belongs to most, and a
+morphological clean-up removes the noise from the label image.
 
 IT2-FCM after Hwang & Rhee (IEEE TFS 2007), the paper's equations (2)-(5), with the standard
 details of docs/method.md, section 2:
@@ -42,13 +48,18 @@ from stabilizer.histogram_seeds import N_LEVELS
 class FuzzyClusters:
     """Result of IT2-FCM on a histogram.
 
-    Attributes:
-        centres: crisp centres (v_L + v_R) / 2, ascending gray levels, shape (C,).
-        intervals: type-reduced centre intervals [v_L, v_R], shape (C, 2).
-        level_labels: length-256 uint8 lookup table gray level -> hard label 1..C; level 0
-            (invalid) -> 0 (for ``cv2.LUT``).
-        iterations: number of centre updates made.
-        converged: whether the largest centre change fell below the tolerance.
+    Attributes
+    ----------
+    centres : (C,) ndarray of float
+        Crisp centres (v_L + v_R) / 2 (eq. (5)), ascending gray levels.
+    intervals : (C, 2) ndarray of float
+        Type-reduced centre intervals [v_L, v_R] (eq. (4)).
+    level_labels : (256,) ndarray of uint8
+        Lookup table gray level -> hard label 1..C; level 0 (invalid) -> 0 (for ``cv2.LUT``).
+    iterations : int
+        Number of centre updates made.
+    converged : bool
+        Whether the largest centre change fell below the tolerance.
     """
 
     centres: np.ndarray
@@ -83,9 +94,27 @@ def _normalised_power(ratio: np.ndarray, m: float, out: np.ndarray | None = None
 
 
 def type1_memberships(x: np.ndarray, centres: np.ndarray, m: float) -> np.ndarray:
-    """FCM memberships u_j(x_i) = 1 / sum_k (d_ij / d_ik)^(2/(m-1)), shape (C, len(x)).
+    """FCM memberships u_j(x_i) = 1 / sum_k (d_ij / d_ik)^(2/(m-1)).
 
     A point at zero distance from one or more centres belongs to those centres equally.
+
+    Parameters
+    ----------
+    x : (N,) ndarray of float
+        Data values (gray levels).
+    centres : (C,) ndarray of float
+        Cluster centres.
+    m : float
+        Fuzzifier, > 1.
+
+    Returns
+    -------
+    (C, N) ndarray of float
+        Memberships; each column sums to 1.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, eq. (2) (either branch).
     """
     return _normalised_power(_distance_ratios(x, centres), m)
 
@@ -105,8 +134,28 @@ def _membership_bounds(x: np.ndarray, centres: np.ndarray, m1: float, m2: float,
 
 def interval_memberships(x: np.ndarray, centres: np.ndarray, m1: float,
                          m2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Upper and lower memberships, shape (C, len(x)): the larger / smaller of the m1 and m2
-    memberships (eq. 2)."""
+    """Upper and lower memberships: the larger and the smaller of the m1 and m2 memberships.
+
+    Parameters
+    ----------
+    x : (N,) ndarray of float
+        Data values (gray levels).
+    centres : (C,) ndarray of float
+        Cluster centres.
+    m1, m2 : float
+        The two fuzzifiers, 1 < m1 < m2.
+
+    Returns
+    -------
+    upper, lower : (C, N) ndarray of float
+        The primary membership interval [lower, upper] of every value in every cluster.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, eq. (2).
+    .. [2] C. Hwang and F. C.-H. Rhee, "Uncertain fuzzy clustering: interval type-2 fuzzy
+           approach to C-means", IEEE Trans. Fuzzy Systems 15(1), 107-120, 2007.
+    """
     bounds = _membership_bounds(x, centres, m1, m2, np.empty((3, centres.size, x.size)))
     return bounds[1], bounds[0]
 
@@ -115,13 +164,24 @@ def karnik_mendel(x: np.ndarray, lower_w: np.ndarray,
                   upper_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Type-reduced centroid interval [v_L, v_R] for every row of the weights.
 
-    Args:
-        x: ascending data values, shape (N,).
-        lower_w, upper_w: weight bounds, shape (C, N) (multiplicities already folded in).
+    Parameters
+    ----------
+    x : (N,) ndarray of float
+        Ascending data values.
+    lower_w, upper_w : (C, N) ndarray of float
+        Weight bounds (multiplicities already folded in).
 
-    Returns:
-        v_left, v_right: shape (C,). v_R is the largest centroid over all switch points k
-        (lower weights for x_1..x_k, upper after); v_L the smallest (upper, then lower).
+    Returns
+    -------
+    v_left, v_right : (C,) ndarray of float
+        v_R is the largest centroid over all switch points k (lower weights for x_1..x_k, upper
+        after); v_L the smallest (upper, then lower).
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, eq. (4).
+    .. [2] J. M. Mendel, "Uncertain rule-based fuzzy logic systems", Prentice Hall, 2001
+           (the Karnik-Mendel procedure).
     """
     c, n = lower_w.shape
     weights = np.empty((4, c, n))
@@ -149,12 +209,23 @@ def _km_interval(weights: np.ndarray, running: np.ndarray) -> tuple[np.ndarray, 
 class IT2FCM:
     """Interval type-2 fuzzy c-means on the weighted histogram of valid gray levels.
 
-    Args:
-        m1, m2: the two fuzzifiers, 1 < m1 < m2. The paper gives no values. Defaults 2.0 and
-            5.0 were chosen by measured accuracy of the whole pipeline on the synthetic depth
-            scenes of the tests (see the module ``stabilizer.t2fuzzy``).
-        tol: stop when no centre moves more than this many gray levels.
-        max_iter: cap on the number of centre updates.
+    Parameters
+    ----------
+    m1, m2 : float, optional
+        The two fuzzifiers, 1 < m1 < m2 (eqs. (2)-(3)). The paper gives no values; defaults 2
+        and 5, a common choice (docs/method.md, section 2; section 10 measures alternatives).
+    tol : float, optional
+        Stop when no centre moves more than this many gray levels. Default 0.01.
+    max_iter : int, optional
+        Cap on the number of centre updates. Default 100.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-B, eqs. (1)-(5).
+    .. [2] C. Hwang and F. C.-H. Rhee, "Uncertain fuzzy clustering: interval type-2 fuzzy
+           approach to C-means", IEEE Trans. Fuzzy Systems 15(1), 107-120, 2007.
     """
 
     def __init__(self, m1: float = 2.0, m2: float = 5.0, tol: float = 1e-2,
@@ -171,10 +242,23 @@ class IT2FCM:
     def fit(self, level_counts: np.ndarray, seeds: np.ndarray) -> FuzzyClusters:
         """Cluster the valid levels (counts as weights) starting from ``seeds``.
 
-        Args:
-            level_counts: length-256 histogram of valid pixels (level 0 ignored).
-            seeds: initial centres (at least one).
+        Parameters
+        ----------
+        level_counts : (256,) ndarray
+            Histogram of the valid pixels (level 0 ignored).
+        seeds : (C,) array_like of float
+            Initial centres, at least one (stage 1, :mod:`stabilizer.histogram_seeds`).
+
+        Returns
+        -------
+        FuzzyClusters
         """
+        if np.shape(level_counts) != (N_LEVELS,):
+            raise ValueError(f"level_counts must be a histogram of {N_LEVELS} gray levels; got "
+                             f"shape {np.shape(level_counts)}")
+        if np.ndim(seeds) != 1 or np.size(seeds) == 0:
+            raise ValueError(f"seeds must be a non-empty 1-D array of gray levels; got shape "
+                             f"{np.shape(seeds)}")
         present = np.flatnonzero(level_counts[1:] > 0) + 1
         x = present.astype(np.float64)
         counts = level_counts[present]
@@ -213,10 +297,18 @@ class IT2FCM:
 class LabelCleaner:
     """Morphological clean-up of a hard label image (opening, then closing, per label).
 
-    Args:
-        morph_size: side of the square structuring element in pixels (odd, >= 1; 1 disables).
-            The paper uses morphology without giving a size; default 3.
-        min_area: labels with fewer pixels than this after clean-up are removed (set to 0).
+    Parameters
+    ----------
+    morph_size : int, optional
+        Side of the square structuring element in pixels (odd, >= 1; 1 disables). The paper
+        uses morphology without giving a size; default 3.
+    min_area : int, optional
+        Labels with fewer pixels than this after clean-up are removed (set to 0). Default 30.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, section II-B and Fig. 4:
+           "Morphological technology is needed to deal with the noise data".
     """
 
     def __init__(self, morph_size: int = 3, min_area: int = 30):
@@ -233,12 +325,25 @@ class LabelCleaner:
         A pixel keeps its label if its label's cleaned mask holds it; a pixel its own label
         lost (noise) takes the first other label whose closing covers it, else 0. All label
         masks are filtered in one call as the channels of one image.
+
+        Parameters
+        ----------
+        labels : (H, W) ndarray of int
+            Hard labels 0..``n_labels`` (0 = invalid or unlabelled).
+        n_labels : int
+            Number of labels, 1..255.
+
+        Returns
+        -------
+        (H, W) ndarray of uint8
         """
         return self.with_areas(labels, n_labels)[0]
 
     def with_areas(self, labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
         """The cleaned label image (see :meth:`__call__`) and the pixel count of each label
         1..``n_labels`` in it (0 for a dropped label)."""
+        if not 1 <= n_labels <= 255:
+            raise ValueError(f"n_labels must be in 1..255 (uint8 labels); got {n_labels}")
         small = labels.astype(np.uint8, copy=False)  # C <= 255; byte-wide work is faster
         planes = [(small == label).view(np.uint8) for label in range(1, n_labels + 1)]
         masks = cv2.merge(planes) if n_labels > 1 else planes[0]

@@ -1,13 +1,19 @@
 """The motion contract shared by every estimator, the ground truth and the harness.
 
-Images are H x W arrays, x to the right, y down; rotations are about the image centre
-c = ((W - 1) / 2, (H - 1) / 2), as in Kang, Zhang & Park (2009): "the origin of the coordinate in
-each frame is the centre of the image".
+docs/design.md, "Motion convention": images are H x W arrays, x to the right, y down; rotations
+are about the image centre c = ((W - 1) / 2, (H - 1) / 2), as in Kang, Zhang & Park (2009): "the
+origin of the coordinate in each frame is the centre of the image".
 
 ``Motion(angle_deg, dx, dy)`` says how the *current* frame is displaced from the *reference*:
 warping the reference with ``A = cv2.getRotationMatrix2D(c, angle_deg, 1.0)`` and ``(dx, dy)``
 added to A's last column yields the current frame. Positive angles are counter-clockwise as
-displayed (OpenCV's convention). Compensation applies the inverse warp to the current frame.
+displayed (OpenCV's convention); in image coordinates that rotation is
+R(a) = [[cos a, sin a], [-sin a, cos a]] (:func:`rotation_matrix`), and a reference pixel x goes
+to R(a) (x - c) + c + (dx, dy). Compensation applies the inverse warp to the current frame.
+
+This module holds the contract and its conversions: images (:func:`apply_motion`,
+:func:`compensate`), points (:func:`transform_points`) and 2 x 3 matrices
+(:func:`motion_matrix`, :func:`motion_from_matrix`).
 """
 
 from __future__ import annotations
@@ -62,12 +68,57 @@ def image_centre(shape: tuple[int, ...]) -> tuple[float, float]:
     return ((width - 1) / 2.0, (height - 1) / 2.0)
 
 
+def rotation_matrix(angle_rad: float) -> np.ndarray:
+    """R(a) = [[cos a, sin a], [-sin a, cos a]]: counter-clockwise as displayed for a > 0.
+
+    The 2 x 2 part of ``cv2.getRotationMatrix2D`` (scale 1) in image coordinates (y down).
+    """
+    cos_a, sin_a = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[cos_a, sin_a], [-sin_a, cos_a]])
+
+
+def motion_from_rotation(angle_rad: float, reference_point: np.ndarray,
+                         current_point: np.ndarray, shape: tuple[int, ...]) -> Motion:
+    """The Motion that rotates by ``angle_rad`` and carries ``reference_point`` (x, y) onto
+    ``current_point``: its translation is t = q - c - R(a) (p - c)."""
+    centre = np.array(image_centre(shape))
+    shift = current_point - centre - rotation_matrix(angle_rad) @ (reference_point - centre)
+    return Motion(math.degrees(angle_rad), float(shift[0]), float(shift[1]))
+
+
 def motion_matrix(motion: Motion, shape: tuple[int, ...]) -> np.ndarray:
     """The 2 x 3 affine matrix that maps reference pixel coordinates to current ones."""
     matrix = cv2.getRotationMatrix2D(image_centre(shape), float(motion.angle_deg), 1.0)
     matrix[0, 2] += motion.dx
     matrix[1, 2] += motion.dy
     return matrix
+
+
+def motion_from_matrix(matrix: np.ndarray, shape: tuple[int, ...]) -> Motion:
+    """The Motion of a 2 x 3 matrix x' = M [x, y, 1] whose 2 x 2 part is a rotation.
+
+    The inverse of :func:`motion_matrix` for a matrix whose rotation is about any origin (for
+    example the pixel origin, as ``cv2.findTransformECC`` returns it). The angle is read from the
+    first row (a uniform scale, if any, is ignored); the translation is re-expressed for a
+    rotation about the image centre: M x + b = R (x - c) + c + t, so t = b + R c - c.
+    """
+    matrix = np.asarray(matrix, np.float64)
+    if matrix.shape != (2, 3):
+        raise ValueError(f"matrix must be 2 x 3; got shape {matrix.shape}")
+    angle = math.atan2(matrix[0, 1], matrix[0, 0])
+    return motion_from_rotation(angle, np.zeros(2), matrix[:, 2], shape)
+
+
+def transform_points(motion: Motion, points: np.ndarray, shape: tuple[int, ...],
+                     inverse: bool = False) -> np.ndarray:
+    """Reference pixel coordinates (N x 2, x y) moved by ``motion`` into the current frame.
+
+    With ``inverse=True``, current coordinates moved back into the reference frame.
+    """
+    matrix = motion_matrix(motion, shape)
+    if inverse:
+        matrix = cv2.invertAffineTransform(matrix)
+    return points @ matrix[:, :2].T + matrix[:, 2]
 
 
 def apply_motion(

@@ -1,4 +1,10 @@
-"""Stage 5 of Kang, Zhang & Park (2009): type-2 fuzzy thresholding of the angle estimates.
+"""Stage 5 of Kang, Zhang & Park (2009), section II-C: type-2 fuzzy thresholding of the angle
+estimates.
+
+Stage 4 gives one rotation estimate per pair of matching point sets, "including some noise
+values which can occur in the case in which the object partially disappears". Two thresholds
+found by type-2 fuzzy thresholding cut off the outliers on either side, and the rotation is the
+mean of the estimates between them (Fig. 7).
 
 Tizhoosh (Pattern Recognition 38, 2005), the paper's eq. (6): a type-1 membership function mu_T
 is shifted over the data range; its footprint of uncertainty has upper mu_U = mu^(1/alpha) and
@@ -36,11 +42,16 @@ MEDIAN_FALLBACK = "median"
 class RobustAngle:
     """Result of the two-threshold filter.
 
-    Attributes:
-        value: the mean of the inliers (or the median on fallback); NaN if there was no data.
-        lower, upper: the two thresholds (NaN on fallback).
-        inliers: boolean mask over the input values (all False on fallback).
-        fallback: None, or ``"median"`` when the median was used instead.
+    Attributes
+    ----------
+    value : float
+        The mean of the inliers (or the median on fallback); NaN if there was no data.
+    lower, upper : float
+        The two thresholds (NaN on fallback).
+    inliers : ndarray of bool
+        Mask over the input values (all False on fallback).
+    fallback : str or None
+        None, or ``"median"`` when the median was used instead.
     """
 
     value: float
@@ -53,11 +64,25 @@ class RobustAngle:
 class Type2FuzzyThreshold:
     """Two ultrafuzziness thresholds around the main group of values; mean of the inliers.
 
-    Args:
-        alpha: exponent of the footprint of uncertainty, in (1, 2]; paper eq. (6), default 2.
-        bandwidth_deg: half-width of the triangular membership function in degrees.
-        resolution_deg: quantisation step of the histogram of values (docs/method.md: 0.1 deg).
-        min_values: fewer values than this fall back to the median.
+    Parameters
+    ----------
+    alpha : float, optional
+        Exponent of the footprint of uncertainty, in (1, 2] (eq. (6)). Default 2.
+    bandwidth_deg : float, optional
+        Half-width of the triangular membership function in degrees. Default 1 (the paper
+        gives none; docs/method.md, section 5).
+    resolution_deg : float, optional
+        Quantisation step of the histogram of values. Default 0.1 (docs/method.md, section 5).
+    min_values : int, optional
+        Fewer values than this fall back to the median. Default 3.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-C, eq. (6) and Fig. 7.
+    .. [2] H. R. Tizhoosh, "Image thresholding using type II fuzzy sets", Pattern Recognition
+           38(12), 2363-2372, 2005.
     """
 
     def __init__(self, alpha: float = 2.0, bandwidth_deg: float = 1.0,
@@ -79,8 +104,23 @@ class Type2FuzzyThreshold:
         self._kernel = membership ** (1.0 / self.alpha) - membership ** self.alpha
 
     def ultrafuzziness(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions T (degrees) and gamma(T) over the range of ``values`` +- one bandwidth."""
-        bins = np.rint(np.asarray(values, dtype=np.float64) / self.resolution).astype(np.int64)
+        """Ultrafuzziness gamma(T) of eq. (6) at every position T of the histogram of values.
+
+        Parameters
+        ----------
+        values : (N,) array_like of float
+            Finite angle estimates in degrees, at least one.
+
+        Returns
+        -------
+        positions, gamma : ndarray of float
+            Positions T (degrees), every ``resolution_deg`` over the range of ``values`` +- one
+            bandwidth, and gamma(T).
+        """
+        values = np.asarray(values, dtype=np.float64)
+        if values.size == 0 or not np.isfinite(values).all():
+            raise ValueError(f"values must be finite and at least one; got {values.size} values")
+        bins = np.rint(values / self.resolution).astype(np.int64)
         first = bins.min() - self._half_taps
         histogram = np.bincount(bins - first, minlength=int(bins.max() - first) + 1
                                 + self._half_taps)
@@ -89,7 +129,17 @@ class Type2FuzzyThreshold:
         return positions, gamma
 
     def __call__(self, values: np.ndarray) -> RobustAngle:
-        """Filter ``values`` (degrees; non-finite entries are ignored and never inliers)."""
+        """The robust rotation of the angle estimates ``values``.
+
+        Parameters
+        ----------
+        values : (N,) array_like of float
+            Angle estimates in degrees; non-finite entries are ignored and never inliers.
+
+        Returns
+        -------
+        RobustAngle
+        """
         values = np.asarray(values, dtype=np.float64)
         finite = np.isfinite(values)
         inliers = np.zeros(values.shape, bool)

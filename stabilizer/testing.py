@@ -18,10 +18,27 @@ SR4000_SHAPE = (144, 176)
 
 def make_depth_scene(seed: int, shape: tuple[int, int] = SR4000_SHAPE, n_objects: int = 4,
                      wall_m: float = 4.5, floor: bool = False) -> np.ndarray:
-    """A float32 depth image: a wall at ``wall_m`` and ``n_objects`` objects at 0.8-3.5 m.
+    """A depth image of a wall with objects in front of it, a pure function of ``seed``.
 
     Objects keep clear of the image border by 15% so that moderate motions keep them in view.
-    With ``floor=True`` the lower quarter is a floor plane whose depth grows toward the wall.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the scene's random layout.
+    shape : (int, int), optional
+        (H, W). Default the SR4000's 144 x 176.
+    n_objects : int, optional
+        Objects at 0.8-3.5 m, each a box, an end-on cylinder or a slanted plane. Default 4.
+    wall_m : float, optional
+        Depth of the back wall in metres. Default 4.5.
+    floor : bool, optional
+        The lower quarter is a floor plane whose depth grows toward the wall. Default False.
+
+    Returns
+    -------
+    (H, W) ndarray of float32
+        Depth in metres.
     """
     rng = np.random.default_rng(seed)
     height, width = shape
@@ -55,7 +72,22 @@ def make_depth_scene(seed: int, shape: tuple[int, int] = SR4000_SHAPE, n_objects
 
 def random_motion(rng: np.random.Generator, max_angle_deg: float = 15.0,
                   max_shift_px: float = 40.0) -> Motion:
-    """A rigid motion with angle and shifts drawn uniformly within the given bounds."""
+    """A rigid motion with angle and shifts drawn uniformly within the given bounds.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    max_angle_deg : float, optional
+        Angles in [-max, max]. Default 15, beyond the +-12 degrees of a walking camera (Kang et
+        al. 2009, section III-B).
+    max_shift_px : float, optional
+        Shifts in [-max, max] along each axis. Default 40, the paper's walking peaks.
+
+    Returns
+    -------
+    Motion
+    """
     return Motion(float(rng.uniform(-max_angle_deg, max_angle_deg)),
                   float(rng.uniform(-max_shift_px, max_shift_px)),
                   float(rng.uniform(-max_shift_px, max_shift_px)))

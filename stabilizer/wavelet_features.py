@@ -1,4 +1,11 @@
-"""Stage 3 of Kang, Zhang & Park (2009), Fig. 5: two-level wavelet features of each object.
+"""Stage 3 of Kang, Zhang & Park (2009), section II-B and Fig. 5: two-level wavelet features of
+each object.
+
+Each segmented object (stage 2) becomes several point sets, one per wavelet subband of its mask:
+the LL band describes the region, the detail bands its outline at two scales. Stage 4
+(:mod:`stabilizer.ellipse`) fits an ellipse to every set, so each object yields several rotation
+estimates ("Many rotation values can be obtained according to the level of wavelet transform and
+the number of segmented objects").
 
 Each segmented object's binary mask is decomposed like ``pywt.wavedec2(mask, wavelet, level)``
 into ``[cA_L, (cH_L, cV_L, cD_L), ..., (cH_1, cV_1, cD_1)]`` (cA = the paper's LL, cH/cV/cD its
@@ -37,12 +44,18 @@ import pywt
 class PointSets:
     """Wavelet point sets of all objects of one frame, flattened.
 
-    Attributes:
-        x, y: image coordinates of all points, shape (P,).
-        weight: magnitude of each point's coefficient relative to its subband's largest.
-        set_id: index of the point set of each point, ``object_index * n_subbands + subband``.
-        n_objects: number of objects (stacked masks) decomposed.
-        n_subbands: point sets per object (see ``WaveletFeatures.subband_names``).
+    Attributes
+    ----------
+    x, y : (P,) ndarray of float
+        Image coordinates of all points.
+    weight : (P,) ndarray of float
+        Magnitude of each point's coefficient relative to its subband's largest.
+    set_id : (P,) ndarray of int
+        Index of the point set of each point, ``object_index * n_subbands + subband``.
+    n_objects : int
+        Number of objects (stacked masks) decomposed.
+    n_subbands : int
+        Point sets per object (see ``WaveletFeatures.subband_names``).
     """
 
     x: np.ndarray
@@ -88,10 +101,19 @@ def _block_sums(stack: np.ndarray) -> np.ndarray:
 def haar_sums(stack: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """One 2-D Haar analysis step over the last two axes, unnormalised.
 
-    Returns (LL, (H, V, D)) = 2 x ``pywt.dwt2(stack, "haar")``: the 2 x 2 block sums and
-    differences, in integers for integer input (only relative magnitudes are used here). Rows
-    then columns, each as contiguous pairs. Odd sizes are extended by repeating the last row or
-    column (PyWavelets' "symmetric" mode).
+    The 2 x 2 block sums and differences, in integers for integer input (only relative
+    magnitudes are used here). Rows then columns, each as contiguous pairs. Odd sizes are
+    extended by repeating the last row or column (PyWavelets' "symmetric" mode).
+
+    Parameters
+    ----------
+    stack : (..., H, W) ndarray
+        Images (object masks) stacked along the leading axes.
+
+    Returns
+    -------
+    LL, (H, V, D) : ndarray
+        2 x ``pywt.dwt2(stack, "haar")``, each (..., ceil(H / 2), ceil(W / 2)).
     """
     stack = _even_sized(stack)
     upper, lower = stack[..., 0::2, :], stack[..., 1::2, :]
@@ -109,8 +131,22 @@ def haar_detail_energy(stack: np.ndarray,
     Without forming the three detail bands: for each 2 x 2 block (a, b, c, d) the Haar step is
     orthogonal up to a factor 2, so LL^2 + H^2 + V^2 + D^2 = 4 (a^2 + b^2 + c^2 + d^2). For
     integer stacks (masks and their block sums) every term is an integer computed exactly, so
-    the result equals the sum of the squared bands bit for bit. ``binary``: the stack holds
-    only 0 and 1 (masks), so a^2 = a and the block sums of the squares are LL itself.
+    the result equals the sum of the squared bands bit for bit.
+
+    Parameters
+    ----------
+    stack : (..., H, W) ndarray
+        Images (object masks or their block sums) stacked along the leading axes.
+    binary : bool, optional
+        The stack holds only 0 and 1 (masks), so a^2 = a and the block sums of the squares are
+        LL itself. Default False.
+
+    Returns
+    -------
+    LL : ndarray
+        As :func:`haar_sums`.
+    detail : ndarray of float32
+        sqrt(H^2 + V^2 + D^2), the shape of LL.
     """
     stack = _even_sized(stack)
     approximation = _block_sums(stack)
@@ -132,15 +168,31 @@ def _even_steps(indices: np.ndarray) -> slice | np.ndarray:
 class WaveletFeatures:
     """Point sets of the wavelet subbands of object masks.
 
-    Args:
-        wavelet: PyWavelets wavelet name; default ``"haar"`` (keeps object edges sharp, cheap).
-        level: decomposition levels; paper: 2 ("the level set was determined to be two").
-        significance: a coefficient is significant if its magnitude exceeds this fraction of the
-            largest magnitude in its subband (0 keeps every non-zero coefficient).
-        edge_margin: detail points within this many pixels of an invalid pixel or of the image
-            border are dropped (their edge is the measurement's, not the scene's).
-        merge_details: one point set per level for the three detail subbands (see above)
-            instead of one per subband.
+    Parameters
+    ----------
+    wavelet : str, optional
+        PyWavelets wavelet name. Default ``"haar"`` (keeps object edges sharp, cheap; the paper
+        names none).
+    level : int, optional
+        Decomposition levels. Default 2, the paper's ("the level set was determined to be
+        two").
+    significance : float, optional
+        A coefficient is significant if its magnitude exceeds this fraction of the largest
+        magnitude in its subband. Default 0 (every non-zero coefficient).
+    edge_margin : int, optional
+        Detail points within this many pixels of an invalid pixel or of the image border are
+        dropped (their edge is the measurement's, not the scene's). Default 2.
+    merge_details : bool, optional
+        One point set per level for the three detail subbands (see the module docstring)
+        instead of one per subband. Default True.
+
+    References
+    ----------
+    .. [1] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           section II-B and Fig. 5.
+    .. [2] S. G. Mallat, "A theory for multiresolution signal decomposition: the wavelet
+           representation", IEEE Trans. PAMI 11(7), 674-693, 1989.
     """
 
     def __init__(self, wavelet: str = "haar", level: int = 2, significance: float = 0.0,
@@ -169,11 +221,20 @@ class WaveletFeatures:
             cv2.MORPH_RECT, (2 * self.edge_margin + 1, 2 * self.edge_margin + 1))
 
     def decompose(self, masks: np.ndarray) -> list[tuple[np.ndarray, int, str]]:
-        """Subbands of an (objects, H, W) mask stack: (magnitudes, level, name) per set.
+        """Subbands of a mask stack.
 
         Magnitudes are up to a constant factor per subband (all that the relative significance
-        and weights use); merged details are sqrt(cH^2 + cV^2 + cD^2). A boolean stack is
-        taken as 0/1 masks.
+        and weights use); merged details are sqrt(cH^2 + cV^2 + cD^2).
+
+        Parameters
+        ----------
+        masks : (objects, H, W) ndarray
+            Object masks; a boolean stack is taken as 0/1 masks.
+
+        Returns
+        -------
+        list of (ndarray, int, str)
+            (magnitudes, level, name) per point set, details from fine to coarse, then LL.
         """
         binary = masks.dtype == bool
         approximation = masks.astype(np.int16) if binary else masks
@@ -200,11 +261,28 @@ class WaveletFeatures:
 
     def __call__(self, labels: np.ndarray, object_labels: np.ndarray,
                  valid: np.ndarray) -> PointSets:
-        """Point sets of the objects ``object_labels`` of an int label image.
+        """Point sets of the objects ``object_labels`` of a label image.
 
-        ``valid`` is the boolean mask of measured pixels (image > 0). Returns all sets of all
-        objects in the order of ``object_labels``, each object's sets in ``subband_names`` order.
+        Parameters
+        ----------
+        labels : (H, W) ndarray of int
+            Label image (stage 2).
+        object_labels : (n_objects,) array_like of int
+            The labels to decompose, one object each.
+        valid : (H, W) ndarray of bool
+            Mask of measured pixels (image > 0).
+
+        Returns
+        -------
+        PointSets
+            All sets of all objects in the order of ``object_labels``, each object's sets in
+            ``subband_names`` order.
         """
+        if np.ndim(labels) != 2 or np.shape(valid) != np.shape(labels):
+            raise ValueError(f"labels and valid must be 2-D arrays of one shape; got "
+                             f"{np.shape(labels)} and {np.shape(valid)}")
+        if np.asarray(valid).dtype != bool:
+            raise ValueError(f"valid must be a boolean mask; got dtype {np.asarray(valid).dtype}")
         masks = (labels[None, :, :] == np.asarray(object_labels)[:, None, None])
         near_edge = self._measurement_edge(valid)
         xs, ys, weights, ids = [], [], [], []

@@ -5,8 +5,9 @@ intrinsics, move the 3-D point by the exact relative camera pose, project it int
 camera, drop points that fall behind the camera, outside the image or behind a nearer surface,
 and fit the 2-D rigid transform (rotation about the image centre, then translation; the
 ``stabilizer.motion`` convention) that maps the reference pixels to those projections in least
-squares. The residual RMS of that fit is the part of the image motion no 2-D rigid model can
-explain (parallax, the zoom of walking forward).
+squares (``stabilizer.rigid_fit``, the fit the point-based peers use too). The residual RMS of
+that fit is the part of the image motion no 2-D rigid model can explain (parallax, the zoom of
+walking forward).
 
 Camera frames follow MuJoCo: ``cam_mat`` columns are the camera's x (right), y (up) and z
 (backward) axes in the world, the camera looks along -z, and image rows grow downward, so a
@@ -22,7 +23,8 @@ from functools import lru_cache
 import numpy as np
 
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
-from stabilizer.motion import Motion, image_centre
+from stabilizer.motion import Motion
+from stabilizer.rigid_fit import fit_rigid
 
 #: Fewest surviving correspondences for a fit; fewer gives Motion.failed("no_overlap").
 MIN_POINTS = 50
@@ -54,50 +56,6 @@ class GroundTruth:
     @property
     def ok(self) -> bool:
         return self.motion.ok
-
-
-@dataclass(frozen=True)
-class RigidFit:
-    """A 2-D rigid least-squares fit in the Motion convention, with its residual RMS."""
-
-    angle_deg: float
-    dx: float
-    dy: float
-    residual_rms_px: float
-
-
-def fit_rigid_2d(source: np.ndarray, target: np.ndarray,
-                 centre: tuple[float, float]) -> RigidFit:
-    """Least-squares rotation about ``centre`` plus translation mapping ``source`` to ``target``.
-
-    The closed form of Kabsch/Umeyama in 2-D without scale: with centred point sets a, b the
-    optimal rotation angle is atan2(sum a x b, sum a . b). In image coordinates (y down) a
-    positive mathematical angle turns +x toward +y, i.e. clockwise as displayed, so the
-    OpenCV/Motion angle is its negative. The translation follows from target = Q (source - c)
-    + c + t at the centroids.
-
-    Args:
-        source, target: N x 2 arrays of (x, y) pixel coordinates, N >= 2.
-        centre: the rotation origin (the image centre in the Motion convention).
-    """
-    source = np.asarray(source, dtype=np.float64)
-    target = np.asarray(target, dtype=np.float64)
-    if source.ndim != 2 or source.shape[1] != 2 or source.shape != target.shape:
-        raise ValueError(f"source and target must both be N x 2 arrays; got {source.shape} "
-                         f"and {target.shape}")
-    if source.shape[0] < 2:
-        raise ValueError(f"a rigid fit needs at least 2 points; got {source.shape[0]}")
-    source_mean, target_mean = source.mean(axis=0), target.mean(axis=0)
-    a, b = source - source_mean, target - target_mean
-    cross = float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]))
-    dot = float(np.sum(a * b))
-    phi = math.atan2(cross, dot)
-    rotation = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
-    centre_xy = np.asarray(centre, dtype=np.float64)
-    translation = target_mean - centre_xy - rotation @ (source_mean - centre_xy)
-    residual = a @ rotation.T - b
-    rms = float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
-    return RigidFit(-math.degrees(phi), float(translation[0]), float(translation[1]), rms)
 
 
 @lru_cache(maxsize=8)
@@ -198,5 +156,5 @@ def ground_truth(reference: Frame, current: Frame,
 
     source = np.stack([cols[usable][keep], rows[usable][keep]], axis=1).astype(np.float64)
     target = np.stack([u[keep], v[keep]], axis=1)
-    fit = fit_rigid_2d(source, target, image_centre((intrinsics.height, intrinsics.width)))
-    return GroundTruth(Motion(fit.angle_deg, fit.dx, fit.dy), fit.residual_rms_px, n_points)
+    fit = fit_rigid(source, target, (intrinsics.height, intrinsics.width))
+    return GroundTruth(fit.motion, fit.residual_rms_px, n_points)

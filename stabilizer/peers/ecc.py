@@ -7,22 +7,20 @@ built once for the reference. Invalid pixels (0 = no measurement) are masked in 
 
 ECC's warp W maps template coordinates to input coordinates: input(W x) ~ template(x). With the
 reference as template, W is the Motion's reference -> current matrix, but its rotation is about
-the pixel origin (0, 0); :func:`stabilizer.peers.common.motion_from_matrix` re-expresses it about
-the image centre. A level-l pyramid image has coordinates x / 2**l, so W's translation scales by
+the pixel origin (0, 0); :func:`stabilizer.motion.motion_from_matrix` re-expresses it about the
+image centre. A level-l pyramid image has coordinates x / 2**l, so W's translation scales by
 2**-l between levels and its rotation does not.
 
-Before anything else both frames are median filtered
-(:func:`stabilizer.peers.common.denoised`), which removes ToF speckle and lowers the noise that
-caps the correlation.
+Both frames are first prepared (:class:`stabilizer.peers.preparation.FramePreparation`): median
+filtered, which removes ToF speckle and lowers the noise that caps the correlation, and clipped
+to the reference's robust range.
 
 Starts (ECC's basin is only a few pixels at the coarsest level): from
-:class:`stabilizer.peers.common.StartSearch`, angles ``start_angles_deg`` each with the shift
-found by phase correlation after turning the frame back, best phase-correlation response first;
-at most ``max_starts`` are run. The search stops at the first result with a final correlation
-of at least ``min_correlation``; otherwise the best correlation wins. (On simulated SR4000
-walks, correct alignments reached 0.957-1.0 and wrong ones at most 0.54; the earlier start
-rule, one phase-correlation shift for every angle, left 15 % of the frames of a walk with
-turns of up to 16 degrees and shifts of 40 px unregistered.)
+:class:`stabilizer.peers.start_search.StartSearch`, angles ``start_angles_deg`` each with the
+shift found by phase correlation after turning the frame back, best phase-correlation response
+first; at most ``max_starts`` are run. The search stops at the first result with a final
+correlation of at least ``min_correlation``; otherwise the best correlation wins. Parameters and
+why: docs/peers.md, "ECC".
 
 Statuses (``Motion.status``) besides ``"ok"``:
     ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
@@ -42,39 +40,50 @@ import math
 import cv2
 import numpy as np
 
-from stabilizer.motion import Motion, motion_matrix
-from stabilizer.peers.common import (
-    START_ANGLES_DEG,
-    FramePreparation,
-    StartSearch,
-    frame_problem,
-    motion_from_matrix,
-)
+from stabilizer.motion import Motion, motion_from_matrix, motion_matrix
+from stabilizer.peers.preparation import FramePreparation, frame_problem
+from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
 
 
 class EccEstimator:
-    """Rigid motion by coarse-to-fine masked ECC, reference pyramid built once.
+    """Rigid motion by coarse-to-fine masked ECC, the reference pyramid built once.
 
-    Args:
-        reference: uint8 disparity-like image (0 = invalid).
-        median_ksize: median filter applied to both frames (0 or 1 = none). Default 5.
-        levels: pyramid levels (1 = full resolution only). Default 3.
-        iterations: most ECC iterations per level. Default 50.
-        epsilon: ECC stops when the correlation gains less than this. Default 1e-4.
-        gauss_filter_size: ECC's Gaussian pre-smoothing kernel (odd). Default 5.
-        min_correlation: the search over starts ends at the first result with at least this
-            final correlation; a best result below it is a failure. Default 0.9.
-        start_angles_deg: the start angle grid. Default ``START_ANGLES_DEG`` of
-            :mod:`stabilizer.peers.common` (-15 to 15 in steps of 5).
-        max_starts: most starts run, best phase-correlation response first. Default 3.
-        clip_sigmas: after the median filter, valid values are clipped to the reference's
-            median -+ this many spreads (:class:`stabilizer.peers.common.FramePreparation`;
-            0 = no clipping). Default 1.5. Phase-wrapped surfaces beyond the SR4000's range
-            show as bright, noisy columns that otherwise dominate; on a simulated hall walk
-            (200 frames) failures 8.5 -> 0.5 %, mean errors 0.37 / 0.81 / 1.03 -> 0.29 / 0.65 / 0.82 (deg / px / px); the lab and corridor walks were unchanged.
-        clip_min_spread: the clip range's spread is at least this many gray levels, so
-            scenes of one flat wall keep their depth steps (Canny, ECC's gradients need
-            contrast). Default 20.
+    Parameters
+    ----------
+    reference : (H, W) uint8 ndarray
+        Disparity-like reference, 0 = invalid.
+    median_ksize : int, optional
+        Median filter applied to both frames (0 or 1 = none). Default 5.
+    levels : int, optional
+        Pyramid levels (1 = full resolution only). Default 3.
+    iterations : int, optional
+        Most ECC iterations per level. Default 50.
+    epsilon : float, optional
+        ECC stops when the correlation gains less than this. Default 1e-4.
+    gauss_filter_size : int, optional
+        ECC's Gaussian pre-smoothing kernel (odd). Default 5.
+    min_correlation : float, optional
+        The search over starts ends at the first result with at least this final correlation;
+        a best result below it is a failure. Default 0.9, between what correct and wrong
+        alignments reach.
+    start_angles_deg : tuple of float, optional
+        The start angle grid. Default
+        :data:`stabilizer.peers.start_search.START_ANGLES_DEG` (-15 to 15 in steps of 5).
+    max_starts : int, optional
+        Most starts run, best phase-correlation response first. Default 3.
+    clip_sigmas : float, optional
+        After the median filter, valid values are clipped to the reference's median -+ this
+        many spreads (:class:`stabilizer.peers.preparation.FramePreparation`; 0 = no clipping).
+        Default 1.5: surfaces beyond the SR4000's range show as bright, noisy columns that
+        otherwise dominate the correlation.
+    clip_min_spread : float, optional
+        The clip range's spread is at least this many gray levels, so that scenes of one flat
+        wall keep their depth steps (ECC's gradients need contrast). Default 20.
+
+    References
+    ----------
+    .. [1] G. D. Evangelidis and E. Z. Psarakis, "Parametric image alignment using enhanced
+           correlation coefficient maximization", IEEE Trans. PAMI 30(10), 1858-1865, 2008.
     """
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, levels: int = 3,
@@ -87,12 +96,12 @@ class EccEstimator:
         if gauss_filter_size < 1 or gauss_filter_size % 2 == 0:
             raise ValueError(f"gauss_filter_size must be a positive odd integer; "
                              f"got {gauss_filter_size}")
+        if max_starts < 1:
+            raise ValueError(f"max_starts must be >= 1; got {max_starts}")
         self.levels = levels
         self.criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, iterations, epsilon)
         self.gauss_filter_size = gauss_filter_size
         self.min_correlation = min_correlation
-        if max_starts < 1:
-            raise ValueError(f"max_starts must be >= 1; got {max_starts}")
         self._prepare = FramePreparation(reference, median_ksize, clip_sigmas, clip_min_spread)
         self.max_starts = max_starts
         self._shape = reference.shape
@@ -117,6 +126,7 @@ class EccEstimator:
         return pyramid[::-1]
 
     def estimate(self, current: np.ndarray) -> Motion:
+        """Motion of ``current`` (uint8, same shape as the reference) relative to the reference."""
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)

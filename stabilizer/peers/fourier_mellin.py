@@ -7,39 +7,29 @@ rotation becomes a shift along the angle axis, found by phase correlation
 (``cv2.phaseCorrelate``). Scale would be the shift along the log-radius axis; the model here is
 rigid, so it is reported in the diagnostics and not used.
 
-Details:
+Details (why each: docs/peers.md, "Fourier-Mellin"):
+- Both frames' valid values are clipped to the reference's robust range, median -+
+  ``clip_sigmas`` spreads (:class:`stabilizer.peers.preparation.FramePreparation`): surfaces
+  beyond the SR4000's range come back phase-wrapped as bright, noisy, speckled columns whose
+  noise would fill the spectrum. No median filter by default: it removes detail the spectrum
+  needs.
 - Invalid pixels (0 = no measurement) are set to the mean of the valid ones
-  (:func:`stabilizer.peers.common.zero_mean_float`), so the step to no measurement adds no
+  (:func:`stabilizer.peers.preparation.zero_mean_float`), so the step to no measurement adds no
   structure; a Hanning window (``cv2.createHanningWindow``) removes the image border's.
 - The windowed image is zero-padded to a square of DFT-friendly size, so that a rotation of the
   image is a rotation of the spectrum's sample grid too.
-- The magnitude is weighted by Reddy & Chatterji's high-pass filter (1 - X)(2 - X),
-  X = cos(pi u) cos(pi v), which suppresses the low frequencies where the window dominates, and
-  resampled by ``cv2.warpPolar`` with ``WARP_POLAR_LOG``. (A log-compressed magnitude gave
-  occasional gross angle errors on synthetic disparity scenes; the plain magnitude did not.)
+- The magnitude (not its logarithm) is weighted by Reddy & Chatterji's high-pass filter
+  (1 - X)(2 - X), X = cos(pi u) cos(pi v), which suppresses the low frequencies where the
+  window dominates, and resampled by ``cv2.warpPolar`` with ``WARP_POLAR_LOG``.
 - The log-polar image is tapered along the log-radius axis by a Hann window before phase
   correlation: phase correlation treats both axes as periodic, and the angle axis is, but the
   log-radius axis is not; the taper also lowers the weight of the highest frequencies, where ToF
-  noise lives. On simulated SR4000 walks (2 x 120 frames) it cut the frames with angle errors
-  over 2 degrees from 27 and 64 to 3 and 9; on clean synthetic scenes, whose sharp edges carry
-  their angle in the highest frequencies, accurate estimates (within 1 deg and 2 px) went from
-  296 to 284 of 300.
-- Both frames' valid values are clipped to the reference's robust range, median -+
-  ``clip_sigmas`` spreads (:class:`stabilizer.peers.common.FramePreparation`): surfaces beyond
-  the SR4000's range come back phase-wrapped as bright (+150 gray levels), noisy, speckled
-  columns whose noise would fill the spectrum. On a simulated hall walk (200 frames, pillars
-  wrapped) failures went from 71 % to 1 % with it (with 1-degree angle bins); with the true
-  angle given, the translation's phase correlation was wrong (over 4 px) on 113 frames
-  unclipped and 24 clipped at 3 robust standard deviations.
-- No median filter by default (``median_ksize`` 0): on the simulated walks it removed detail the
-  spectrum needs (gross errors 0 -> 3-4 %). Frames with dense isolated bright outliers need it:
-  scattered 255-valued pixels (0.4 %) broke two thirds of synthetic cases without it.
+  noise lives.
 - A magnitude spectrum is symmetric under a half turn, so the angle a and a + 180 degrees both
   fit; the current frame is turned back by each and the translation found by phase correlation
   (turning back about the image centre leaves the shift t' = R(a)^-1 t, so t = R(a) t'). The
   candidate whose compensated frame correlates better with the reference on the pixels valid in
-  both wins (comparing the two phase-correlation peaks instead picked the wrong half turn on
-  scenes that look alike upside down).
+  both wins (the two phase-correlation peaks cannot tell scenes that look alike upside down).
 
 Statuses (``Motion.status``) besides ``"ok"``:
     ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
@@ -62,43 +52,45 @@ import math
 import cv2
 import numpy as np
 
-from stabilizer.motion import Motion, compensate
-from stabilizer.peers.common import (
-    FramePreparation,
-    frame_problem,
-    rotation_matrix,
-    zero_mean_float,
-)
+from stabilizer.motion import Motion, compensate, rotation_matrix
+from stabilizer.peers.preparation import FramePreparation, frame_problem, zero_mean_float
 
 
 class FourierMellinEstimator:
     """Rigid motion by Fourier-Mellin registration, the reference's log-polar spectrum cached.
 
-    Args:
-        reference: uint8 disparity-like image (0 = invalid).
-        median_ksize: median filter applied to both frames (0 or 1 = none). Default 0.
-        angle_bins: rows of the log-polar image, spanning 360 degrees. Default 360 (1 deg):
-            phaseCorrelate interpolates the peak to a fraction of a bin, and on simulated
-            SR4000 walks (hall 200, lab 120, corridor 120 frames, frames clipped) rotation
-            peaks over 2 degrees off fell from 16 / 4 / 9 frames with 720 bins to 3 / 1 / 1;
-            on 300 clean synthetic cases accurate estimates rose from 284 to 296.
-        clip_sigmas: valid values are clipped to median -+ this many spreads of the
-            reference (0 = no clipping). Default 1.5: hall walk failures 1 %, no gross error
-            (2: 3.5 %, one; 3: 11 %, none; 0: 67.5 %, 3 %); lab and corridor walks 0.8 % and
-            0 % at 1.5 to 3. See :func:`stabilizer.peers.common.robust_value_range`.
-        clip_min_spread: the spread is at least this many gray levels. Default 10: a clean
-            scene of few flat levels has a robust spread near 0, and a smaller floor clips it to
-            an almost binary image (a noise-free MuJoCo frame then failed the overlap check with
-            the right motion); on the walks the hall's failures are 3 % instead of 1 % at 1,
-            lab and corridor unchanged.
-        radius_bins: columns of the log-polar image (log radius). Default 128.
-        min_response: translation peaks weaker than this are failures. Default 0.1: on two
-            simulated SR4000 walks (240 frames), every estimate with a peak of at least 0.1 was
-            within 2.7 deg and 5.5 px of the truth, gross errors (over 3 deg or 8 px) peaked at
-            0.072 at most, and correct ones went down to 0.068 on a low-contrast corridor.
-        min_overlap_correlation: the least correlation of the aligned frames accepted.
-            Default 0.8: on those walks, gross errors scored at most 0.39 and correct estimates
-            at least 0.58 (0.9 on all but a low-contrast corridor frame).
+    Parameters
+    ----------
+    reference : (H, W) uint8 ndarray
+        Disparity-like reference, 0 = invalid.
+    median_ksize : int, optional
+        Median filter applied to both frames (0 or 1 = none). Default 0: the filter removes
+        fine detail the spectrum uses; frames with dense isolated outliers need one.
+    angle_bins : int, optional
+        Rows of the log-polar image, spanning 360 degrees. Default 360 (1-degree bins):
+        ``cv2.phaseCorrelate`` interpolates the peak to a fraction of a bin, and finer bins
+        sample a noisier spectrum.
+    radius_bins : int, optional
+        Columns of the log-polar image (log radius). Default 128.
+    min_response : float, optional
+        Translation peaks weaker than this are failures. Default 0.1, between what gross errors
+        and correct estimates reach.
+    min_overlap_correlation : float, optional
+        The least correlation of the aligned frames, on the pixels valid in both, accepted.
+        Default 0.8, between what gross errors and correct estimates reach.
+    clip_sigmas : float, optional
+        Valid values are clipped to median -+ this many spreads of the reference (0 = no
+        clipping; :func:`stabilizer.peers.preparation.robust_value_range`). Default 1.5.
+    clip_min_spread : float, optional
+        The spread is at least this many gray levels. Default 10: a clean scene of a few flat
+        levels has a robust spread near 0, and a smaller floor clips it to an almost binary
+        image.
+
+    References
+    ----------
+    .. [1] B. S. Reddy and B. N. Chatterji, "An FFT-based technique for translation, rotation,
+           and scale-invariant image registration", IEEE Trans. Image Processing 5(8),
+           1266-1271, 1996.
     """
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 0, angle_bins: int = 360,
@@ -139,6 +131,7 @@ class FourierMellinEstimator:
         return log_polar * self._radius_window
 
     def estimate(self, current: np.ndarray) -> Motion:
+        """Motion of ``current`` (uint8, same shape as the reference) relative to the reference."""
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)

@@ -1,35 +1,32 @@
 """ICP peer (Kang et al. 2009, Table I "ICP"; Besl & McKay 1992): 2-D point-to-point ICP.
 
-The depth image's structure is its edge set: Canny edges of the median-filtered disparity image
-(:func:`stabilizer.peers.common.denoised`; without it, ToF noise on far walls makes thousands of
-spurious edge pixels), excluding the step to invalid pixels (0 = no measurement). Edge pixels of
-the current frame, evenly subsampled to at most ``max_points``, are matched to their nearest
-reference edge pixel (a ``scipy.spatial.cKDTree`` built once on the reference) and the
-closed-form rigid fit about the image centre is solved on the matches, until the stopping rule:
-at most ``max_iterations``, or an iteration that changes the angle by less than
-``tolerance_deg`` and the translation by less than ``tolerance_px``.
+The depth image's structure is its edge set: Canny edges of the prepared disparity image
+(median filtered and clipped to the reference's robust range,
+:class:`stabilizer.peers.preparation.FramePreparation`), excluding the step to invalid pixels
+(0 = no measurement). Edge pixels of the current frame, evenly subsampled to at most
+``max_points``, are matched to their nearest reference edge pixel (a ``scipy.spatial.cKDTree``
+built once on the reference) and the closed-form rigid fit about the image centre
+(:func:`stabilizer.rigid_fit.fit_rigid`) is solved on the matches, until the stopping rule: at
+most ``max_iterations``, or an iteration that changes the angle by less than ``tolerance_deg``
+and the translation by less than ``tolerance_px``.
 
 Partial overlap (parts of the scene leave or enter the view): matches farther than a gate are
 not correspondences. The gate starts at ``max_distance_px`` and follows the registration
 (Zhang 1994): after each step it shrinks to ``gate_factor`` times the median match distance
 (never below ``min_gate_px``), so edges with no counterpart stop pulling the fit once it has
-locked on (with the fixed gate, on a simulated SR4000 walk, 43 % of frames ended in poor fits
-and the mean x error of the rest was 2.3 px; with the shrinking gate, none and 0.9 px). Optionally
-only the closest ``overlap`` fraction of the gated matches is kept (trimmed ICP, Chetverikov et
-al. 2002); the default keeps all: trimming the farthest matches early drops exactly the points
-whose residuals reveal a rotation error.
+locked on. Optionally only the closest ``overlap`` fraction of the gated matches is kept
+(trimmed ICP, Chetverikov et al. 2002); the default keeps all: trimming the farthest matches
+early drops exactly the points whose residuals reveal a rotation error.
 
 Initialisation: ICP converges only from near the answer. The starts come from
-:class:`stabilizer.peers.common.StartSearch` (angles ``start_angles_deg``, each with the shift
-found by phase correlation after turning the frame back), best phase-correlation response
+:class:`stabilizer.peers.start_search.StartSearch` (angles ``start_angles_deg``, each with the
+shift found by phase correlation after turning the frame back), best phase-correlation response
 first; at most ``max_starts`` are run. A run is scored by its inlier fraction, the share of
 current edge points within ``inlier_px`` of a reference edge point after the fit; the search
-stops at the first run scoring at least ``accept_fraction``, else the best run wins. Correct
-fits on simulated walks scored 0.47-1.0 (parallax, zoom and scene entering the view leave edges
-unmatched), wrong ones 0.12-0.4: hence the defaults 0.5 and ``min_fraction`` 0.3. A run that
+stops at the first run scoring at least ``accept_fraction``, else the best run wins. A run that
 used all ``max_iterations`` is still an estimate when it fits (diagnostic ``converged`` is
 False). The paper's ICP is a plain one; this is the standard robust (gated, multi-start)
-variant.
+variant. Parameters and why: docs/peers.md, "ICP".
 
 Statuses (``Motion.status``) besides ``"ok"``:
     ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
@@ -53,52 +50,76 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from stabilizer.motion import Motion
-from stabilizer.peers.common import (
-    START_ANGLES_DEG,
-    FramePreparation,
-    StartSearch,
-    fit_rigid,
-    frame_problem,
-    transform_points,
-    valid_interior,
-)
+from stabilizer.motion import Motion, transform_points
+from stabilizer.peers.preparation import FramePreparation, frame_problem, valid_interior
+from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
+from stabilizer.rigid_fit import fit_rigid
 
 
 class IcpEstimator:
-    """Rigid motion by gated point-to-point ICP on edge points, reference analysed once.
+    """Rigid motion by gated point-to-point ICP on edge points, the reference analysed once.
 
-    Args:
-        reference: uint8 disparity-like image (0 = invalid).
-        median_ksize: median filter before edge detection (0 or 1 = none). Default 5.
-        canny_low, canny_high: hysteresis thresholds of ``cv2.Canny`` on the disparity image.
-            Defaults 20 and 40 (a depth step of a few gray levels).
-        border_margin_px: edge pixels closer than this to invalid pixels are dropped. Default 2.
-        max_points: current-frame edge pixels used, subsampled evenly (bounds the cost of a
-            step). Default 1000.
-        max_distance_px: the first gate; matches farther than it are not correspondences.
-            Default 20.
-        overlap: fraction of the gated matches kept, the closest ones. Default 1.0 (all).
-        max_iterations: per start. Default 30.
-        tolerance_deg, tolerance_px: convergence when one step changes less. Defaults 0.05,
-            0.05 (0.05 deg moves a pixel at the image corner by 0.1 px).
-        start_angles_deg: the start angle grid. Default ``START_ANGLES_DEG`` of
-            :mod:`stabilizer.peers.common` (-15 to 15 in steps of 5).
-        max_starts: most starts run, best phase-correlation response first. Default 3.
-        min_points: fewest edge pixels / correspondences accepted. Default 20.
-        inlier_px: a current edge point within this of a reference one fits. Default 1.5.
-        accept_fraction: an inlier fraction that ends the search over starts. Default 0.5.
-        min_fraction: the least inlier fraction accepted as an estimate. Default 0.3.
-        gate_factor: the gate shrinks to this times the median match distance. Default 3.
-        min_gate_px: the gate never shrinks below this. Default 3.
-        clip_sigmas: after the median filter, valid values are clipped to the reference's
-            median -+ this many spreads (:class:`stabilizer.peers.common.FramePreparation`;
-            0 = no clipping). Default 1.5. Phase-wrapped surfaces beyond the SR4000's range
-            show as bright, noisy columns that otherwise dominate; on a simulated hall walk
-            (200 frames) failures 6.0 -> 2.0 %, gross errors 4.8 -> 4.1 %, mean x / y errors 2.0 / 2.1 -> 0.85 / 1.3 px; the lab and corridor walks were unchanged.
-        clip_min_spread: the clip range's spread is at least this many gray levels, so
-            scenes of one flat wall keep their depth steps (Canny, ECC's gradients need
-            contrast). Default 20.
+    Parameters
+    ----------
+    reference : (H, W) uint8 ndarray
+        Disparity-like reference, 0 = invalid.
+    median_ksize : int, optional
+        Median filter before edge detection (0 or 1 = none). Default 5: without it, ToF noise
+        on far walls makes thousands of spurious edge pixels.
+    canny_low, canny_high : float, optional
+        Hysteresis thresholds of ``cv2.Canny`` on the disparity image. Defaults 20 and 40 (a
+        depth step of a few gray levels).
+    border_margin_px : int, optional
+        Edge pixels closer than this to invalid pixels are dropped. Default 2.
+    max_points : int, optional
+        Current-frame edge pixels used, subsampled evenly (bounds the cost of a step).
+        Default 1000.
+    max_distance_px : float, optional
+        The first gate: matches farther than it are not correspondences. Default 20.
+    overlap : float, optional
+        Fraction of the gated matches kept, the closest ones. Default 1 (all).
+    max_iterations : int, optional
+        Per start. Default 30.
+    tolerance_deg, tolerance_px : float, optional
+        Convergence when one step changes less. Defaults 0.05 and 0.05 (0.05 deg moves a pixel
+        at the image corner by 0.1 px).
+    start_angles_deg : tuple of float, optional
+        The start angle grid. Default
+        :data:`stabilizer.peers.start_search.START_ANGLES_DEG` (-15 to 15 in steps of 5).
+    max_starts : int, optional
+        Most starts run, best phase-correlation response first. Default 3.
+    min_points : int, optional
+        Fewest edge pixels and correspondences accepted. Default 20.
+    inlier_px : float, optional
+        A current edge point within this of a reference one fits. Default 1.5.
+    accept_fraction : float, optional
+        An inlier fraction that ends the search over starts. Default 0.5, below what correct
+        fits score (parallax, zoom and scene entering the view leave some edges unmatched).
+    min_fraction : float, optional
+        The least inlier fraction accepted as an estimate. Default 0.3, above what wrong local
+        minima score.
+    gate_factor : float, optional
+        The gate shrinks to this times the median match distance. Default 3.
+    min_gate_px : float, optional
+        The gate never shrinks below this. Default 3.
+    clip_sigmas : float, optional
+        After the median filter, valid values are clipped to the reference's median -+ this
+        many spreads (:class:`stabilizer.peers.preparation.FramePreparation`; 0 = no clipping).
+        Default 1.5: surfaces beyond the SR4000's range show as bright, noisy columns that
+        otherwise dominate the edge set.
+    clip_min_spread : float, optional
+        The clip range's spread is at least this many gray levels, so that scenes of one flat
+        wall keep their depth steps (Canny needs contrast). Default 20.
+
+    References
+    ----------
+    .. [1] P. J. Besl and N. D. McKay, "A method for registration of 3-D shapes", IEEE Trans.
+           PAMI 14(2), 239-256, 1992.
+    .. [2] Z. Zhang, "Iterative point matching for registration of free-form curves and
+           surfaces", IJCV 13(2), 119-152, 1994.
+    .. [3] D. Chetverikov, D. Svirko, D. Stepanov and P. Krsek, "The trimmed iterative closest
+           point algorithm", ICPR 2002.
+    .. [4] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, Table I ("ICP").
     """
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, canny_low: float = 20.0,
@@ -152,6 +173,7 @@ class IcpEstimator:
         return points
 
     def estimate(self, current: np.ndarray) -> Motion:
+        """Motion of ``current`` (uint8, same shape as the reference) relative to the reference."""
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
@@ -192,7 +214,8 @@ class IcpEstimator:
             keep = gated[np.argsort(distances[gated])[:math.ceil(self.overlap * gated.size)]]
             if keep.size < self.min_points:
                 return None
-            updated = fit_rigid(self._reference_points[nearest[keep]], points[keep], self._shape)
+            updated = fit_rigid(self._reference_points[nearest[keep]], points[keep],
+                                self._shape).motion
             converged = (abs(updated.angle_deg - motion.angle_deg) < self.tolerance_deg and
                          math.hypot(updated.dx - motion.dx, updated.dy - motion.dy)
                          < self.tolerance_px)

@@ -1,14 +1,15 @@
 """SIFT peer (Kang et al. 2009, Table I "SIFT"; Lowe 2004): keypoints, ratio test, rigid RANSAC.
 
 SIFT keypoints and descriptors are found on the valid interior of each median-filtered
-(:func:`stabilizer.peers.common.denoised`) disparity image (never on the step to 0 = no
+(:func:`stabilizer.peers.preparation.denoised`) disparity image (never on the step to 0 = no
 measurement), matched to the reference's by Lowe's ratio test, and a
 rotation + translation (no scale) is fitted robustly: a rigid two-point RANSAC (every pair of
 matches proposes a motion; see :func:`_rigid_ransac_inliers` for why not OpenCV's similarity
 RANSAC) picks the consensus set, then the closed-form rigid fit about the image centre is
 refitted on the matches within the RANSAC threshold of it, until that set settles (at most 3
-fits). Matches are counted once per point pair: SIFT makes one keypoint per dominant
-orientation, and duplicates would inflate a consensus.
+fits; :func:`stabilizer.rigid_fit.fit_rigid`). Matches are counted once per point pair: SIFT
+makes one keypoint per dominant orientation, and duplicates would inflate a consensus. Parameters
+and why: docs/peers.md, "SIFT".
 
 Statuses (``Motion.status``) besides ``"ok"``:
     ``empty_reference`` / ``empty_current``: (almost) no valid pixel.
@@ -26,48 +27,56 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from stabilizer.motion import Motion, image_centre
-from stabilizer.peers.common import (
+from stabilizer.motion import Motion, image_centre, transform_points
+from stabilizer.peers.preparation import (
     check_median_ksize,
     denoised,
-    fit_rigid,
     frame_problem,
-    transform_points,
     valid_interior,
 )
+from stabilizer.rigid_fit import fit_rigid
 
 
 class SiftEstimator:
     """Rigid motion from SIFT matches against a reference analysed once.
 
-    Args:
-        reference: uint8 disparity-like image (0 = invalid).
-        ratio: Lowe's ratio test; a match is kept when its distance is below ``ratio`` times
-            the second-best one's. Default 0.75.
-        ransac_threshold_px: reprojection error (px) under which a match is an inlier.
-            Default 3.0.
-        min_inliers: fewest inliers accepted as an estimate. Default 3 (two fix a rigid motion,
-            the third confirms it).
-        border_margin_px: keypoints are detected only this far (px) from invalid pixels.
-            Default 3.
-        median_ksize: median filter applied to both frames (0 or 1 = none). Default 5: on two
-            simulated SR4000 walks it halved the mean angle error (1.0 -> 0.5 deg on the
-            walk with a cluttered scene) and removed most gross errors.
-        contrast_threshold: SIFT's contrast threshold. Default 0.003, far below OpenCV's 0.04,
-            because disparity images have few, low-contrast corners (walls differ by a few
-            gray levels): on a simulated SR4000 corridor walk, 0.01 left 19 % of the frames
-            with too few matches or inliers, 0.005 7 %, 0.003 1.7 % (gross errors 3, 3 and 2
-            frames of 120); at 0.04 about half of the synthetic test scenes had too few
-            matches.
-        edge_threshold: SIFT's edge threshold (keypoints whose principal curvature ratio
-            exceeds it lie on an edge and are dropped). Default 20, OpenCV's 10 doubled: a
-            disparity image's structure is mostly depth steps, and corners of steps (a stair
-            edge meeting a pillar) have strongly unequal curvatures. On simulated SR4000 walks
-            (hall with stairs, 200 frames): failures 31.5 -> 15.5 %, gross errors among the
-            estimates 5.8 -> 7.1 %; corridor (120): failures 1.7 -> 1.7 %, mean angle error
-            1.65 -> 0.69 deg; lab: unchanged (0 % failures, 0 gross).
-        max_features: keep the best N keypoints per frame, 0 = all (OpenCV default).
-        max_hypotheses: most two-match rigid hypotheses RANSAC scores. Default 2000.
+    Parameters
+    ----------
+    reference : (H, W) uint8 ndarray
+        Disparity-like reference, 0 = invalid.
+    median_ksize : int, optional
+        Median filter applied to both frames (0 or 1 = none). Default 5: ToF noise and speckle
+        otherwise make keypoints of their own.
+    ratio : float, optional
+        Lowe's ratio test: a match is kept when its descriptor distance is below ``ratio``
+        times the second-best one's. Default 0.75.
+    ransac_threshold_px : float, optional
+        Reprojection error (px) under which a match is an inlier. Default 3.
+    min_inliers : int, optional
+        Fewest inliers accepted as an estimate. Default 3 (two fix a rigid motion, the third
+        confirms it).
+    border_margin_px : int, optional
+        Keypoints are detected only this far (px) from invalid pixels. Default 3.
+    contrast_threshold : float, optional
+        SIFT's contrast threshold. Default 0.003, far below OpenCV's 0.04: disparity images
+        have few, low-contrast corners (walls differ by a few gray levels).
+    max_features : int, optional
+        Keep the best N keypoints per frame; 0 = all (OpenCV's default).
+    max_hypotheses : int, optional
+        Most two-match rigid hypotheses RANSAC scores. Default 2000.
+    edge_threshold : float, optional
+        SIFT's edge threshold (keypoints whose principal curvature ratio exceeds it lie on an
+        edge and are dropped). Default 20, OpenCV's 10 doubled: a disparity image's structure
+        is mostly depth steps, and the corners of steps (a stair edge meeting a pillar) have
+        strongly unequal curvatures.
+
+    References
+    ----------
+    .. [1] D. G. Lowe, "Distinctive image features from scale-invariant keypoints", IJCV 60(2),
+           91-110, 2004.
+    .. [2] T.-K. Kang, H. Zhang and G.-T. Park, "Stereo-vision based motion stabilization of a
+           humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
+           Table I ("SIFT").
     """
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, ratio: float = 0.75,
@@ -104,6 +113,7 @@ class SiftEstimator:
         return points, descriptors
 
     def estimate(self, current: np.ndarray) -> Motion:
+        """Motion of ``current`` (uint8, same shape as the reference) relative to the reference."""
         problem = self._reference_problem or frame_problem(current, "current")
         if problem:
             return Motion.failed(problem)
@@ -127,7 +137,7 @@ class SiftEstimator:
         for _ in range(3):
             if inlier.sum() < self.min_inliers:
                 return Motion.failed("too_few_inliers", **diagnostics)
-            motion = fit_rigid(reference_pts[inlier], current_pts[inlier], self._shape)
+            motion = fit_rigid(reference_pts[inlier], current_pts[inlier], self._shape).motion
             residuals = _residuals(motion, reference_pts, current_pts, self._shape)
             refined = residuals < self.ransac_threshold_px
             if np.array_equal(refined, inlier):

@@ -107,3 +107,45 @@ def test_rotation_sign_follows_the_motion_convention():
                                  1).angle_deg[0])
     assert fits[0] == pytest.approx(25.0, abs=0.5)
     assert axis_angle_difference(fits[0], fits[1]) == pytest.approx(8.0, abs=0.5)
+
+
+def _points(n: int = 20):
+    angles = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    return 30.0 + 10.0 * np.cos(angles), 40.0 + 4.0 * np.sin(angles), np.zeros(n, np.intp)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"y": np.zeros(5)}, "1-D arrays of one length"),
+    ({"x": np.zeros((20, 1))}, "1-D arrays of one length"),
+    ({"set_id": np.zeros(19, np.intp)}, "1-D arrays of one length"),
+    ({"x": np.zeros(20, complex)}, "real-valued"),
+    ({"x": np.full(20, np.nan)}, "finite"),
+    ({"n_sets": -1}, "n_sets must be an integer >= 0"),
+    ({"n_sets": 1.0}, "n_sets must be an integer >= 0"),
+    ({"set_id": np.zeros(20)}, "set_id must be an integer array"),
+    ({"set_id": np.full(20, 1, np.intp)}, r"set_id must lie in \[0, n_sets\)"),
+    ({"set_id": np.full(20, -1, np.intp)}, r"set_id must lie in \[0, n_sets\)"),
+    ({"min_axis_ratio": 0.5}, "min_axis_ratio must be >= 1"),
+    ({"min_axis_ratio": np.nan}, "min_axis_ratio must be >= 1"),
+    ({"weight": np.ones(3)}, "weight must have the shape of x"),
+    ({"weight": -np.ones(20)}, "finite and non-negative"),
+    ({"weight": np.full(20, np.inf)}, "finite and non-negative"),
+])
+def test_bad_inputs_are_rejected_with_what_is_accepted(change, message):
+    x, y, set_id = _points()
+    arguments = {"x": x, "y": y, "set_id": set_id, "n_sets": 1, **change}
+    with pytest.raises(ValueError, match=message):
+        fit_ellipses(**arguments)
+
+
+def test_no_points_and_no_sets_are_accepted():
+    empty = np.zeros(0)
+    assert fit_ellipses(empty, empty, np.zeros(0, np.intp), 0).valid.size == 0
+    assert not fit_ellipses(empty, empty, np.zeros(0, np.intp), 2).valid.any()
+
+
+def test_integer_coordinates_fit_as_floats():
+    x, y, set_id = _points()
+    ints = fit_ellipses(np.rint(x).astype(int), np.rint(y).astype(int), set_id, 1)
+    floats = fit_ellipses(np.rint(x), np.rint(y), set_id, 1)
+    assert ints.as_tuples() == floats.as_tuples()

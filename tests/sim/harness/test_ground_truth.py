@@ -1,4 +1,8 @@
-"""Ground truth from exact poses (docs/design.md, "Ground truth") against independent ray-cast frames."""
+"""Ground truth from exact poses (docs/design.md, "Ground truth") against independent ray-cast
+frames.
+
+Its 2-D rigid fit (stabilizer.rigid_fit) is tested in tests/stabilizer/test_rigid_fit.py.
+"""
 
 import dataclasses
 import math
@@ -9,15 +13,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame  # noqa: E402
-from sim.harness.ground_truth import fit_rigid_2d, ground_truth  # noqa: E402
+from sim.harness.ground_truth import ground_truth  # noqa: E402
 from stabilizer.api import available_methods, estimate  # noqa: E402
 from stabilizer.inputs import depth_to_disparity  # noqa: E402
-from stabilizer.motion import Motion, apply_motion, image_centre, motion_matrix  # noqa: E402
+from stabilizer.motion import Motion, apply_motion, image_centre  # noqa: E402
 from tests.sim.harness.scene_frames import (box_world, camera_matrix, facing_rectangle,  # noqa: E402
                                     render_frame)
 
@@ -187,23 +189,6 @@ def test_bad_frames_are_rejected(change, message):
 def test_bad_stride_is_rejected(stride):
     with pytest.raises(ValueError, match="stride"):
         ground_truth(*_frames(), stride=stride)
-
-
-@settings(max_examples=40, deadline=None)
-@given(angle=st.floats(-170, 170), dx=st.floats(-50, 50), dy=st.floats(-50, 50))
-def test_rigid_fit_recovers_any_motion_matrix(angle, dx, dy):
-    rng = np.random.default_rng(0)
-    source = rng.uniform(0, [176, 144], size=(200, 2))
-    matrix = motion_matrix(Motion(angle, dx, dy), (144, 176))
-    fit = fit_rigid_2d(source, source @ matrix[:, :2].T + matrix[:, 2], image_centre((144, 176)))
-    assert fit.angle_deg == pytest.approx(angle, abs=1e-7)
-    assert fit.dx == pytest.approx(dx, abs=1e-6) and fit.dy == pytest.approx(dy, abs=1e-6)
-    assert fit.residual_rms_px < 1e-6
-
-
-def test_rigid_fit_rejects_mismatched_points():
-    with pytest.raises(ValueError, match="N x 2"):
-        fit_rigid_2d(np.zeros((5, 2)), np.zeros((4, 2)), (0.0, 0.0))
 
 
 # --------------------------------------------------------------------------- MuJoCo frames

@@ -1,0 +1,89 @@
+"""The 2-D rigid least-squares fit: the rotation about the image centre and the translation that
+best carry one point set onto another, in the Motion convention (docs/design.md).
+
+The closed form of Kabsch and Umeyama in two dimensions, without scale: for point sets p
+(reference) and q (current), each taken about its centroid, the angle a that maximises
+sum q . R(a) p, with R(a) the convention's rotation (:func:`stabilizer.motion.rotation_matrix`),
+is
+
+    a = atan2(sum (q_x p_y - q_y p_x), sum p . q),
+
+and the translation carries the reference centroid onto the current one. One fit serves the
+ground truth (sim/harness/ground_truth.py) and the point-based peers (SIFT, ICP; docs/peers.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from stabilizer.motion import Motion, motion_from_rotation, rotation_matrix
+
+
+@dataclass(frozen=True)
+class RigidFit:
+    """Result of :func:`fit_rigid`.
+
+    Attributes:
+        motion: the least-squares rigid Motion (reference -> current points).
+        rotation: its 2 x 2 rotation R(a).
+        reference_centred, current_centred: the two point sets about their centroids (N x 2).
+    """
+
+    motion: Motion
+    rotation: np.ndarray
+    reference_centred: np.ndarray
+    current_centred: np.ndarray
+
+    @property
+    def residual_rms_px(self) -> float:
+        """RMS distance (px) between the current points and the reference points moved by
+        ``motion``: the part of the point motion no 2-D rigid model explains. Computed when
+        asked (the peers' iterations do not need it)."""
+        residual = self.reference_centred @ self.rotation.T - self.current_centred
+        return float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
+
+
+def fit_rigid(reference_pts: np.ndarray, current_pts: np.ndarray,
+              shape: tuple[int, ...]) -> RigidFit:
+    """Least-squares rotation about the image centre plus translation (no scale) mapping
+    reference points onto current ones.
+
+    Parameters
+    ----------
+    reference_pts, current_pts : (N, 2) array_like
+        Corresponding (x, y) pixel coordinates, N >= 2, row i of one matching row i of the
+        other.
+    shape : tuple of int
+        Shape (H, W, ...) of the images the points lie in; the rotation is about their centre
+        ((W - 1) / 2, (H - 1) / 2).
+
+    Returns
+    -------
+    RigidFit
+        The Motion, and on request the residual RMS of the fit.
+
+    References
+    ----------
+    .. [1] W. Kabsch, "A solution for the best rotation to relate two sets of vectors", Acta
+           Crystallographica A32, 922-923, 1976.
+    .. [2] S. Umeyama, "Least-squares estimation of transformation parameters between two point
+           patterns", IEEE Trans. PAMI 13(4), 376-380, 1991.
+    """
+    reference_pts = np.asarray(reference_pts, np.float64)
+    current_pts = np.asarray(current_pts, np.float64)
+    if (reference_pts.ndim != 2 or reference_pts.shape[1] != 2
+            or reference_pts.shape != current_pts.shape):
+        raise ValueError(f"reference_pts and current_pts must both be N x 2 arrays; got "
+                         f"{reference_pts.shape} and {current_pts.shape}")
+    if reference_pts.shape[0] < 2:
+        raise ValueError(f"a rigid fit needs at least 2 points; got {reference_pts.shape[0]}")
+    reference_mean = reference_pts.mean(axis=0)
+    current_mean = current_pts.mean(axis=0)
+    p = reference_pts - reference_mean
+    q = current_pts - current_mean
+    angle = math.atan2(float(np.sum(q[:, 0] * p[:, 1] - q[:, 1] * p[:, 0])), float(np.sum(p * q)))
+    motion = motion_from_rotation(angle, reference_mean, current_mean, shape)
+    return RigidFit(motion, rotation_matrix(angle), p, q)

@@ -1,0 +1,76 @@
+"""The Motion convention's conversions (stabilizer.motion): matrices, points and rotations."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from stabilizer.motion import (
+    Motion,
+    image_centre,
+    motion_from_matrix,
+    motion_from_rotation,
+    motion_matrix,
+    rotation_matrix,
+    transform_points,
+)
+from stabilizer.testing import SR4000_SHAPE
+
+
+def test_rotation_matrix_is_the_2x2_part_of_opencvs_rotation():
+    for angle in (-30.0, 0.0, 7.5, 90.0):
+        opencv = cv2.getRotationMatrix2D((0.0, 0.0), angle, 1.0)[:, :2]
+        np.testing.assert_allclose(rotation_matrix(math.radians(angle)), opencv, atol=1e-12)
+
+
+def test_positive_angles_turn_counter_clockwise_as_displayed():
+    # +x (right) turns toward -y (up on screen) for a small positive angle.
+    turned = rotation_matrix(math.radians(10.0)) @ np.array([1.0, 0.0])
+    assert turned[0] > 0 and turned[1] < 0
+
+
+def test_matrix_about_the_origin_converts_to_the_centre_convention():
+    """A rotation about (0, 0), as ECC reports it, re-expressed about the image centre."""
+    about_origin = cv2.getRotationMatrix2D((0.0, 0.0), 6.0, 1.0)
+    about_origin[:, 2] += (4.0, -2.0)
+    motion = motion_from_matrix(about_origin, SR4000_SHAPE)
+    np.testing.assert_allclose(motion_matrix(motion, SR4000_SHAPE), about_origin, atol=1e-9)
+    assert motion.angle_deg == pytest.approx(6.0)
+
+
+def test_motion_from_matrix_inverts_motion_matrix():
+    truth = Motion(-12.0, 30.0, -7.5)
+    found = motion_from_matrix(motion_matrix(truth, SR4000_SHAPE), SR4000_SHAPE)
+    np.testing.assert_allclose(found.as_tuple(), truth.as_tuple(), atol=1e-9)
+
+
+def test_motion_from_matrix_rejects_other_shapes():
+    with pytest.raises(ValueError, match="2 x 3"):
+        motion_from_matrix(np.eye(3), SR4000_SHAPE)
+
+
+def test_motion_from_rotation_carries_the_point_onto_its_target():
+    reference_point, current_point = np.array([20.0, 100.0]), np.array([35.5, 90.25])
+    motion = motion_from_rotation(math.radians(8.0), reference_point, current_point,
+                                  SR4000_SHAPE)
+    assert motion.angle_deg == pytest.approx(8.0)
+    moved = transform_points(motion, reference_point[None, :], SR4000_SHAPE)[0]
+    np.testing.assert_allclose(moved, current_point, atol=1e-9)
+
+
+def test_the_image_centre_only_moves_by_the_translation():
+    motion = Motion(25.0, 3.0, -4.0)
+    centre = np.array([image_centre(SR4000_SHAPE)])
+    np.testing.assert_allclose(transform_points(motion, centre, SR4000_SHAPE),
+                               centre + (3.0, -4.0), atol=1e-9)
+
+
+def test_transform_points_inverse_undoes_the_motion():
+    motion = Motion(-9.0, 14.0, 6.0)
+    points = np.random.default_rng(0).uniform(0, 170, (20, 2))
+    moved = transform_points(motion, points, SR4000_SHAPE)
+    np.testing.assert_allclose(transform_points(motion, moved, SR4000_SHAPE, inverse=True),
+                               points, atol=1e-9)
