@@ -10,6 +10,10 @@ the dataclasses below, one per TOML table. Example::
     seed = 0                              # sensor noise and anything else random in the run
     duration_s = 30.0
 
+    [scene_params]                        # the scene's parameters (docs/scenes.md); any
+    half_width_m = [0.7, 0.8]             # left out keeps its default. A range [low, high]
+    clutter_count = [2, 3]                # is drawn from scene_seed's generator.
+
     [[commands]]                          # walk commands, in time order, the first at t = 0
     t = 0.0                               # each holds until the next one
     speed = 0.0                           # forward speed, m/s (0 = stand / stop)
@@ -54,7 +58,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from scenarios import SCENARIOS_DIR
-from sim.world.scenes import SCENES
+from sim.world.scenes import SCENES, SceneParameterError, scene_layout
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
 from stabilizer.api import available_methods
 
@@ -157,6 +161,8 @@ class Scenario:
     description: str = _key("", "free text")
     scene: str = _key("corridor", f"one of {', '.join(SCENES)}", lambda v: v in SCENES)
     scene_seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
+    scene_params: dict = _key(dict, "a table [scene_params] of the scene's parameters "
+                              "(docs/scenes.md); resolved, it lists every parameter")
     seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
     duration_s: float = _key(20.0, f"0 < duration_s <= {MAX_DURATION_S:g}",
                              lambda v: 0 < v <= MAX_DURATION_S)
@@ -219,7 +225,10 @@ def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) 
 
 def scenario_from_dict(raw: Mapping[str, Any], source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a (TOML-like) dict; ``source`` names it in errors."""
-    values = _check_table(Scenario, raw, "", source, nested=("commands", *_SECTIONS))
+    values = _check_table(Scenario, raw, "", source,
+                          nested=("commands", "scene_params", *_SECTIONS))
+    values["scene_params"] = _check_scene_params(
+        raw.get("scene_params", {}), values.get("scene", Scenario.scene), source)
     for section, cls in _SECTIONS.items():
         table = raw.get(section, {})
         if not isinstance(table, Mapping):
@@ -299,6 +308,18 @@ def _check_commands(raw_commands, duration_s, source) -> tuple[Command, ...]:
             raise ScenarioError(source, f"commands[{i}].t", f"{times[i]!r} does not increase "
                                 f"or is not before duration_s={duration_s}", allowed)
     return tuple(commands)
+
+
+def _check_scene_params(table, scene: str, source: str) -> dict:
+    """Every parameter of ``scene``: the table's values (checked) and the defaults."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError(source, "scene_params", f"must be a table, got {table!r}",
+                            Scenario.__dataclass_fields__["scene_params"].metadata["allowed"])
+    try:
+        return scene_layout(scene, **table).params()
+    except SceneParameterError as error:
+        raise ScenarioError(source, f"scene_params.{error.parameter}",
+                            f"{error.problem} (scene {scene!r})", error.accepted) from None
 
 
 def _check_gait(scenario: Scenario, source: str) -> None:

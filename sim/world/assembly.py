@@ -16,9 +16,28 @@ from sim.world.humanoid import TORSO_BODY_NAME, humanoid_mjcf
 
 #: Physics settings the walking controller is tuned for (docs/walking.md recipe, step 6).
 PHYSICS_TIMESTEP_S = 0.0025
-#: Nearest and farthest rendered depth, metres: the SR4000's range (0.1-10 m) with margin.
+#: Rendered depth range, metres: the SR4000's 0.1-10 m with margin. MuJoCo takes it as clip
+#: planes in fractions of the model extent (:func:`clip_plane_fractions`).
 DEPTH_NEAR_M = 0.05
+#: Farthest rendered depth of an assembled world (:func:`compile_world`).
 DEPTH_FAR_M = 20.0
+#: Farthest rendered depth of a scene compiled on its own, without the robot
+#: (``sim.world.scenes.Scene.compile``: probe cameras in tests, the render benchmark); the
+#: scenes' MJCF carries it, and pixels that see no surface read it.
+SCENE_DEPTH_FAR_M = 30.0
+
+
+def clip_plane_fractions(extent_m: float, near_m: float = DEPTH_NEAR_M,
+                         far_m: float = DEPTH_FAR_M) -> tuple[float, float]:
+    """MuJoCo's clip planes ``(znear, zfar)`` for a depth range in metres.
+
+    MuJoCo expresses ``visual/map`` znear and zfar as fractions of the model extent
+    (``statistic/extent``, or the compiled ``model.stat.extent``).
+    """
+    if not (extent_m > 0 and 0 < near_m < far_m):
+        raise ValueError(f"need extent_m > 0 and 0 < near_m < far_m; got extent_m={extent_m}, "
+                         f"near_m={near_m}, far_m={far_m}")
+    return near_m / extent_m, far_m / extent_m
 
 
 def floor_arena() -> mjcf.RootElement:
@@ -73,12 +92,11 @@ def compile_world(world_mjcf: mjcf.RootElement) -> mujoco.MjModel:
     """Compile an assembled world (with its assets) into an MjModel.
 
     The depth clipping planes are set on the compiled model so the camera renders depth from
-    ``DEPTH_NEAR_M`` to ``DEPTH_FAR_M`` whatever the world's size: MuJoCo expresses znear and
-    zfar as fractions of the model extent, known only after compiling.
+    ``DEPTH_NEAR_M`` to ``DEPTH_FAR_M`` whatever the world's size: the model extent they are
+    fractions of is known only after compiling.
     """
     model = mujoco.MjModel.from_xml_string(world_mjcf.to_xml_string(), world_mjcf.get_assets())
-    model.vis.map.znear = DEPTH_NEAR_M / model.stat.extent
-    model.vis.map.zfar = DEPTH_FAR_M / model.stat.extent
+    model.vis.map.znear, model.vis.map.zfar = clip_plane_fractions(model.stat.extent)
     return model
 
 
@@ -88,4 +106,5 @@ def free_joint_qpos_address(model: mujoco.MjModel) -> int:
     for joint in np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE):
         if model.jnt_bodyid[joint] == frame_body:
             return int(model.jnt_qposadr[joint])
-    raise ValueError("the model has no free joint carrying the humanoid; build it with sim.world.assembly.assemble")
+    raise ValueError("the model has no free joint carrying the humanoid; build it with "
+                     "sim.world.assembly.assemble")

@@ -1,31 +1,61 @@
-"""Indoor scenes the robot walks through: a registry and ``build_scene(name, seed)``.
+"""Indoor scenes the robot walks through: a registry and ``build_scene(name, seed, **params)``.
 
-Each scene module has ``build(seed) -> Scene``; the shared building blocks are in
-:mod:`sim.world.scenes.parts`. Attach the robot with ``sim.world.assembly.assemble(scene.arena,
-scene.start_xy, scene.start_yaw_deg)``.
+Each scene is a class in the manner of dm_control's locomotion arenas: its constructor's
+keyword arguments are its parameters (ranges drawn from the seeded generator, counts,
+positions; documented, with defaults), and ``build(seed)`` draws one scene from them; the same
+seed and parameters give the same scene. docs/scenes.md describes the scenes, their
+parameters, the lane rule and how to add a scene. The modules:
+
+- ``corridor``, ``office``, ``lab``, ``hall``: the scenes;
+- ``variation``: parameter kinds, checks and draws (:class:`SceneLayout`, the scenes' base);
+- ``builder``: the finished :class:`Scene` and the :class:`SceneBuilder` a scene is made with;
+- ``arena``: the empty arena (floor, materials, lights, clip planes) and its primitives;
+- ``structure``: walls, rooms, doors, stairs, pillars; ``furniture``: the furniture catalogue;
+- ``placement``: rejection sampling of footprints off the lane; ``lane``: paths and the lane
+  check on the compiled model.
+
+Attach the robot with ``sim.world.assembly.assemble(scene.arena, scene.start_xy,
+scene.start_yaw_deg)``.
 """
 
 from __future__ import annotations
 
-from sim.world.scenes import corridor, hall, lab, office
-from sim.world.scenes.parts import Scene
+from typing import Any
 
-#: Scene name -> builder ``build(seed) -> Scene``.
-SCENES = {
-    "corridor": corridor.build,
-    "office": office.build,
-    "lab": lab.build,
-    "hall": hall.build,
+from sim.world.scenes.builder import Scene
+from sim.world.scenes.corridor import Corridor
+from sim.world.scenes.hall import Hall
+from sim.world.scenes.lab import Lab
+from sim.world.scenes.office import Office
+from sim.world.scenes.variation import SceneLayout, SceneParameterError
+
+#: Scene name -> its layout class: ``SCENES[name](**params).build(seed) -> Scene``.
+SCENES: dict[str, type[SceneLayout]] = {
+    layout.name: layout for layout in (Corridor, Office, Lab, Hall)
 }
 
 
-def build_scene(name: str, seed: int = 0) -> Scene:
-    """Build scene ``name`` with its furniture placed from ``seed`` (same seed, same scene)."""
+def scene_layout(name: str, **params: Any) -> SceneLayout:
+    """The layout of scene ``name`` with ``params`` (the others at their defaults).
+
+    Raises:
+        ValueError: unknown scene.
+        SceneParameterError: (a ValueError) unknown parameter or value out of range; the
+            message names the scene, the parameter and what it accepts.
+    """
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; accepted: {', '.join(SCENES)}")
+    return SCENES[name].from_params(params)
+
+
+def build_scene(name: str, seed: int = 0, **params: Any) -> Scene:
+    """Build scene ``name`` with its random choices drawn from ``seed`` (same seed and
+    parameters, same scene); ``params`` are the scene's parameters (docs/scenes.md)."""
+    layout = scene_layout(name, **params)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"scene seed must be an integer >= 0; got {seed!r}")
-    return SCENES[name](seed)
+    return layout.build(seed)
 
 
-__all__ = ["SCENES", "Scene", "build_scene"]
+__all__ = ["SCENES", "Scene", "SceneLayout", "SceneParameterError", "build_scene",
+           "scene_layout"]

@@ -11,10 +11,10 @@ import pytest
 
 import sim.harness.scenario as scenario_module
 from scenarios import SCENARIOS_DIR
-from sim.harness.scenario import (ScenarioError, commanded_trajectory, list_scenarios, load_scenario,
-                          resolve_scenario_path)
-from sim.world.scenes import build_scene
-from sim.world.scenes.parts import path_distance
+from sim.harness.scenario import (ScenarioError, commanded_trajectory, list_scenarios,
+                                  load_scenario, resolve_scenario_path)
+from sim.world.scenes import SCENES, build_scene
+from sim.world.scenes.lane import path_distance
 from sim.world.sensor.tof_model import TOF_PRESETS
 from stabilizer.api import available_methods
 
@@ -43,7 +43,7 @@ def test_the_required_scenarios_are_shipped_and_load():
 def test_commands_keep_the_walker_on_its_scene_path(path):
     """An ideal walker following the commands stays within 5 cm of the path, up to its end."""
     scenario = load_scenario(path)
-    scene = build_scene(scenario.scene, scenario.scene_seed)
+    scene = build_scene(scenario.scene, scenario.scene_seed, **scenario.scene_params)
     walked = commanded_trajectory(scenario, scene.start_xy, scene.start_yaw_deg)
     offsets = [path_distance(scene.path, np.r_[xy, xy]) for xy in walked[::10]]
     assert max(offsets) < 0.05
@@ -53,6 +53,7 @@ def test_commands_keep_the_walker_on_its_scene_path(path):
 def test_defaults_are_the_documented_ones(tmp_path):
     scenario = load_scenario(write(tmp_path, MINIMAL))
     assert scenario.name == "case" and scenario.scene == "lab" and scenario.scene_seed == 0
+    assert scenario.scene_params == SCENES["lab"]().params()
     assert scenario.duration_s == 20.0 and scenario.seed == 0
     assert [(c.t, c.speed, c.yaw_rate) for c in scenario.commands] == [(0.0, 0.0, 0.0)]
     assert scenario.gait.preset == "default" and scenario.gait.overrides == {}
@@ -145,6 +146,19 @@ frame_stride = 3
     ('scene = "lab"\ncommands = 3\n', "commands", "[[commands]]"),
     ('scene = "lab"\nsensor = 3\n', "sensor", "[sensor]"),
     ('scene = "lab\n', "(file)", "TOML"),
+    ('scene = "lab"\nscene_params = 3\n', "scene_params", "[scene_params]"),
+    ('scene = "lab"\n[scene_params]\nwidth = 5.0\n', "scene_params.width",
+     "room_past_walk_m, half_width_m"),
+    ('scene = "lab"\n[scene_params]\nhalf_width_m = [3.0, 2.0]\n', "scene_params.half_width_m",
+     "low <= high"),
+    ('scene = "lab"\n[scene_params]\nhalf_width_m = [0.2, 2.0]\n',
+     "scene_params.half_width_m", "1 <= low"),
+    ('scene = "lab"\n[scene_params]\nextra_clutter_count = 3\n',
+     "scene_params.extra_clutter_count", "a pair [low, high] of integers"),
+    ('scene = "office"\n[scene_params]\ncrates_ahead = [1, 2]\n', "scene_params.crates_ahead",
+     "an integer from 0"),
+    ('scene = "corridor"\n[scene_params]\nside_doors_per_wall = [1, 4]\n',
+     "scene_params.side_doors_per_wall", "as many doors as slots"),
 ])
 def test_bad_files_name_the_file_the_key_and_what_is_allowed(tmp_path, text, key, allowed):
     path = write(tmp_path, text)
@@ -179,3 +193,24 @@ def test_the_documented_example_is_a_valid_scenario(tmp_path):
     scenario = load_scenario(write(tmp_path, example))
     assert scenario.name == "corridor_straight" and len(scenario.commands) == 2
     assert scenario.sensor.tof_params().mixed_pixel_weight == 0.3
+
+
+def test_scene_params_vary_the_scene_and_are_recorded(tmp_path):
+    """A [scene_params] table builds another scene than the defaults; the resolved scenario
+    lists every parameter of the scene (metrics.json records them)."""
+    varied = load_scenario(write(tmp_path, 'scene = "corridor"\n[scene_params]\n'
+                                 'half_width_m = [1.1, 1.2]\nclutter_count = [0, 1]\n'))
+    default = load_scenario(write(tmp_path, 'scene = "corridor"\n', "default.toml"))
+    assert varied.scene_params["half_width_m"] == (1.1, 1.2)
+    assert varied.scene_params["end_room_depth_m"] == default.scene_params["end_room_depth_m"]
+    document = json.loads(json.dumps(varied.to_dict()))
+    assert document["scene_params"]["half_width_m"] == [1.1, 1.2]
+    assert set(document["scene_params"]) == set(SCENES["corridor"].parameter_names())
+    varied_scene = build_scene(varied.scene, varied.scene_seed, **varied.scene_params)
+    default_scene = build_scene(default.scene, default.scene_seed, **default.scene_params)
+    assert varied_scene.arena.to_xml_string() != default_scene.arena.to_xml_string()
+    assert default_scene.arena.to_xml_string() == build_scene("corridor", 0).arena.to_xml_string()
+    again = load_scenario(write(tmp_path, 'scene = "corridor"\n', "again.toml"),
+                          overrides={"scene_params.half_width_m": [1.1, 1.2],
+                                     "scene_params.clutter_count": [0, 1]})
+    assert again.scene_params == varied.scene_params

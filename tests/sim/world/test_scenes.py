@@ -1,10 +1,14 @@
-"""Indoor scenes: they compile, are reproducible from the seed, leave the robot's lane free and
-give the sensor objects at several depths."""
+"""Indoor scenes: they compile, are reproducible from the seed and parameters, leave the robot's
+lane free, give the sensor objects at several depths, and take checked parameters."""
 
 from __future__ import annotations
 
+import ast
+import dataclasses
+import hashlib
 import math
 import os
+import re
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -12,8 +16,8 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from sim.world.scenes import SCENES, build_scene  # noqa: E402
-from sim.world.scenes.parts import lane_intrusions, polyline  # noqa: E402
+from sim.world.scenes import SCENES, SceneParameterError, build_scene  # noqa: E402
+from sim.world.scenes.lane import lane_intrusions, polyline  # noqa: E402
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
 from sim.world.sensor.tof_model import TOF_PRESETS  # noqa: E402
 
@@ -120,3 +124,90 @@ def test_robot_attaches_and_its_camera_is_an_sr4000():
         frame = sensor.capture_still(data)
     assert frame.valid.mean() > 0.8
     assert 0.4 < frame.cam_pos[2] < 0.7
+
+
+# -- parameters -------------------------------------------------------------------------------
+
+#: SHA-1 of each scene's MJCF at seed 0 with default parameters, as the scenes were first made
+#: (before they took parameters). A change means the scene changed (or dm_control's XML writer).
+FIRST_SCENES_SHA1 = {
+    "corridor": "0749ad0222a26758ba17b29a1e470e37ebb66ff6",
+    "office": "f164809fad19029df16ebb4999f2221c54152060",
+    "lab": "446619c3f95ff3b60f328976045a62e0340f6388",
+    "hall": "e518d3a6717a32542562fc217ef84a41d6bf226a",
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_default_parameters_give_the_first_scenes(name):
+    scene = build_scene(name, 0)
+    assert hashlib.sha1(scene.arena.to_xml_string().encode()).hexdigest() == \
+        FIRST_SCENES_SHA1[name]
+    explicit = build_scene(name, 0, **SCENES[name]().params())
+    assert explicit.arena.to_xml_string() == scene.arena.to_xml_string()
+    assert scene.params == SCENES[name]().params()
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_docstring_documents_every_parameter_and_its_default(name):
+    layout = SCENES[name]
+    doc = " ".join(layout.__doc__.split())
+    for spec in dataclasses.fields(layout):
+        assert f" {spec.name}: " in doc, spec.name
+        described = doc.split(f" {spec.name}: ")[1]
+        for other in layout.parameter_names():  # up to the next parameter's description
+            described = described.split(f" {other}: ")[0]
+        documented = re.search(r"default (\([^)]*\)|\d+)", described).group(1)
+        assert np.array_equal(ast.literal_eval(documented), spec.default), spec.name
+
+
+def test_parameters_change_the_scene_and_are_reproducible():
+    wide = build_scene("corridor", 0, half_width_m=(1.2, 1.2), clutter_count=(0, 0))
+    again = build_scene("corridor", 0, half_width_m=[1.2, 1.2], clutter_count=[0, 0])
+    assert wide.arena.to_xml_string() == again.arena.to_xml_string()
+    assert wide.arena.to_xml_string() != build_scene("corridor", 0).arena.to_xml_string()
+    assert wide.params["half_width_m"] == (1.2, 1.2)
+    side_walls = [body for body in wide.arena.worldbody.body if body.name.startswith("wall")
+                  and abs(abs(body.pos[1]) - 1.2) < 1e-9]
+    assert side_walls  # the side walls moved out to y = +-1.2 m
+    assert not [body for body in wide.arena.worldbody.body if body.name.startswith("crate")]
+    assert not _lane_contacts(wide)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_every_parameter_at_its_bounds_keeps_the_lane_free(name):
+    """All ranges fixed at the low (then high) end of what they accept: the scene builds."""
+    layout = SCENES[name]
+    for end in (0, 1):
+        params = {}
+        for spec in dataclasses.fields(layout):
+            bound = spec.metadata["within"][end]
+            kind = spec.metadata["kind"]
+            params[spec.name] = {"integer": min(bound, 4), "integer_range": (min(bound, 6),) * 2,
+                                 "real_range": (bound, bound), "positions": (bound,)}[kind]
+        if name == "corridor":
+            params["side_doors_per_wall"] = (min(end, 1),) * 2
+        scene = build_scene(name, 1, **params)
+        assert not lane_intrusions(scene.compile(), scene.path)
+
+
+@pytest.mark.parametrize("params, parameter, accepted", [
+    ({"width": 1.0}, "width", "half_width_m, end_wall_past_walk_m"),
+    ({"half_width_m": (0.9, 0.8)}, "half_width_m", "low <= high"),
+    ({"half_width_m": (0.1, 0.8)}, "half_width_m", "0.45 <= low"),
+    ({"half_width_m": 0.8}, "half_width_m", "a pair"),
+    ({"half_width_m": (0.7, float("nan"))}, "half_width_m", "a pair"),
+    ({"clutter_count": (1.5, 2)}, "clutter_count", "integers"),
+    ({"clutter_count": (True, 2)}, "clutter_count", "integers"),
+    ({"side_door_slots_m": ()}, "side_door_slots_m", "non-empty"),
+    ({"side_doors_per_wall": (1, 4)}, "side_doors_per_wall", "as many doors as slots"),
+])
+def test_bad_parameters_are_refused_naming_scene_parameter_and_accepted(params, parameter,
+                                                                         accepted):
+    with pytest.raises(SceneParameterError) as error:
+        build_scene("corridor", 0, **params)
+    message = str(error.value)
+    assert isinstance(error.value, ValueError) and "\n" not in message
+    assert error.value.scene == "corridor" and error.value.parameter == parameter
+    assert "'corridor'" in message and repr(parameter) in message
+    assert accepted in message.split("accepted:")[1]
