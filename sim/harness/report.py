@@ -1,8 +1,10 @@
 """A run's outputs: frames.csv, metrics.json, summary.md (the paper's Table I layout), plots.
 
-Every file is written atomically (sim/atomic.py), so a run that ends early (a fall, Ctrl-C)
-leaves complete files; metrics.json is written last and says how the run ended. The same
-Markdown tables serve summary.md, the one-screen terminal summary and ``aggregate_runs``.
+Every file is written atomically (sim/harness/atomic.py), so a run that ends early (a fall,
+Ctrl-C) leaves complete files; metrics.json is written last and says how the run ended. The same
+Markdown tables serve summary.md and the one-screen terminal summary; ``score_rows`` reads a
+run's figures back from metrics.json for the tables over several runs (``aggregate_runs`` and
+the sweep's table, sim/harness/sweep/tables.py).
 
 Table I of Kang, Zhang & Park (2009) ("Errors in the ideal case") lists, for the rotation, the
 X-axis and the Y-axis displacement, one row per method with the mean and the variance of its
@@ -40,6 +42,9 @@ AXIS_TITLES = {"rotation": "Rotation displacement", "x": "X-axis displacement",
                "y": "Y-axis displacement"}
 PLOT_DPI = 100
 RECORDING_NOTE = "rerun recording (open: rerun FILE)"
+#: Keys of ``score_rows`` holding the mean and the variance of |error| of each axis.
+MEAN_ERROR_COLUMNS = {axis: f"{axis}_mean_abs_error_{AXIS_UNITS[axis]}" for axis in AXES}
+ERROR_VARIANCE_COLUMNS = {axis: f"{axis}_abs_error_variance_{AXIS_UNITS[axis]}" for axis in AXES}
 
 
 @dataclass(frozen=True)
@@ -353,6 +358,32 @@ def read_metrics(run: str | Path) -> dict:
     return document
 
 
+def score_rows(metrics: Mapping | None) -> list[dict]:
+    """One row per method of a run: its figures over the whole run, read from metrics.json.
+
+    Args:
+        metrics: the content of a run's metrics.json (``read_metrics``), or None for a run
+            that left none.
+
+    Returns:
+        Dicts with the keys "method", "frames", the mean and the variance of |error| of each
+        axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "failure_rate",
+        "ms_per_frame", "itf_db" and "itf_raw_db"; a figure metrics.json has none of is NaN.
+        A run that scored no frame (it fell at once) has no row.
+    """
+    scores = ((metrics or {}).get("summary") or {}).get("run") or {}
+    rows = []
+    for method, data in scores.items():
+        score = MethodScore.from_dict(data)
+        rows.append({"method": method, "frames": score.n_frames,
+                     **{MEAN_ERROR_COLUMNS[axis]: score.errors[axis].mean for axis in AXES},
+                     **{ERROR_VARIANCE_COLUMNS[axis]: score.errors[axis].variance
+                        for axis in AXES},
+                     "failure_rate": score.failure_rate, "ms_per_frame": score.ms_mean,
+                     "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db})
+    return rows
+
+
 def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None = None) -> str:
     """One Markdown table over several runs: a row per run and method, Table I figures.
 
@@ -367,17 +398,16 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
         document = read_metrics(run)
         head = (run.name if run.is_dir() else run.parent.name,
                 str((document.get("scenario") or {}).get("name", "")), document["status"])
-        scores = document["summary"]["run"]
+        scores = score_rows(document)
         if not scores:
             rows.append((*head, "-", "0", *("n/a",) * 6))
-        for method, score in scores.items():
-            cells = [f"{format_number(score['errors'][axis]['mean'])} / "
-                     f"{format_number(score['errors'][axis]['variance'])}" for axis in AXES]
-            failure = score["failure_rate"]
-            rows.append((*head, method, str(score["n_frames"]), *cells,
-                         f"{format_number(None if failure is None else 100 * failure, 1)}%",
-                         format_number(score["ms_mean"]),
-                         f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}"))
+        rows += [(*head, score["method"], str(score["frames"]),
+                  *(f"{format_number(score[MEAN_ERROR_COLUMNS[axis]])} / "
+                    f"{format_number(score[ERROR_VARIANCE_COLUMNS[axis]])}" for axis in AXES),
+                  f"{format_number(100 * score['failure_rate'], 1)}%",
+                  format_number(score["ms_per_frame"]),
+                  f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}")
+                 for score in scores]
     table = markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
                              "Rotation mean / var (deg)", "X mean / var (px)",
                              "Y mean / var (px)", "Failure rate", "ms/frame",

@@ -164,11 +164,7 @@ def run(config: RunConfig) -> dict:
     the finished frames are written).
     """
     # Imports here keep `import sim.harness.runner` light for process pools that only pickle configs.
-    from sim.harness.ground_truth import ground_truth
-    from sim.harness.recording import RunRecorder
-    from sim.harness.report import write_run_outputs
     from sim.harness.scenario import load_scenario
-    from sim.harness.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
 
     overrides = dict(config.overrides)
     if config.seed is not None:
@@ -180,95 +176,146 @@ def run(config: RunConfig) -> dict:
     out_dir = Path(config.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    robot = scenario_robot(scenario)
-    recording_path = out_dir / RECORDING_RRD
-    recording = config.record and scenario.recording.enabled
-    scenario_dict = scenario.to_dict()
-    meta: dict[str, Any] = {
-        "seed": scenario.seed, "methods": list(methods),
-        "reference_policy": scenario.evaluation.reference, "scene": scenario.scene,
-        "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps,
-        "max_frames": config.max_frames,
-    }
-    records: list = []
-    itf = ItfAccumulator()
-    tracker = _ReferenceTracker(scenario.evaluation.reference, methods)
-    n_frames_planned = int(math.floor(scenario.duration_s * scenario.sensor.fps))
-    if config.max_frames is not None:
-        n_frames_planned = min(n_frames_planned, config.max_frames)
-    status, message = COMPLETE, ""
-
-    def write(final: bool) -> dict:
-        meta["frames_done"] = len(records) // max(len(methods), 1)
-        files = write_run_outputs(
-            out_dir, scenario=scenario_dict, records=records,
-            summary=summarize(records, itf), meta=meta,
-            status=status if final else "running", plots=final,
-            recording=recording_path if recording and final else None)
-        return files.metrics
-
-    wall_start = time.perf_counter()
-    recorder = (RunRecorder(recording_path, methods, properties={"scenario": scenario_dict,
-                                                               "seed": scenario.seed},
-                            frame_stride=scenario.recording.frame_stride,
-                            recording_id=f"{scenario.name}-seed{scenario.seed}")
-                if recording else None)
-    progress = _progress_bar(n_frames_planned, scenario.name, config.progress)
-    previous_frame = None
+    state = _RunState(scenario, methods, out_dir, config.max_frames,
+                      record=config.record and scenario.recording.enabled)
+    state.start()
+    progress = _progress_bar(state.n_frames, scenario.name, config.progress)
     try:
-        with open_sensor(scenario, robot) as sensor:
-            for frame in walk_frames(scenario, robot, sensor, n_frames_planned):
-                index, cycle = frame.index, robot.gait_cycle
-                reference = tracker.reference_for(frame, cycle, previous_frame)
-                truth = ground_truth(reference, frame,
-                                     reference_depth_m=reference.true_depth_m,
-                                     current_depth_m=frame.true_depth_m)
-                estimates, compensated = {}, {}
-                for method in methods:
-                    motion, ms = timed_estimate(tracker.stabilizers[method], frame.disparity8)
-                    estimates[method] = motion
-                    compensated[method] = compensate(frame.disparity8, motion)
-                    records.append(FrameRecord.score(
-                        frame_index=index, time_s=frame.time_s, gait_cycle=cycle,
-                        reference_index=reference.index, method=method, estimate=motion,
-                        truth=truth, ms=ms))
-                    itf.add(method, compensated[method], gait_cycle=cycle,
-                            reference_index=reference.index)
-                itf.add(RAW_STREAM, frame.disparity8, gait_cycle=cycle,
-                        reference_index=reference.index)
-                if recorder is not None:
-                    recorder.log_frame(frame, estimates=estimates, truth=truth,
-                                       compensated=compensated,
-                                       robot_position=robot.torso_pose()[0])
-                previous_frame = frame
+        with open_sensor(scenario, state.robot) as sensor:
+            for frame in walk_frames(scenario, state.robot, sensor, state.n_frames):
+                state.score_frame(frame)
                 progress.update(1)
-                if robot.fall is not None:
-                    status = FELL
-                    message = f"the robot fell at {robot.fall.time_s:.2f} s ({robot.fall.reason})"
-                    meta["fall"] = {"time_s": robot.fall.time_s, "reason": robot.fall.reason}
+                if state.robot.fall is not None:
+                    state.end_with_fall()
                     break
-                if (index + 1) % CHECKPOINT_FRAMES == 0:
-                    write(final=False)
+                if (frame.index + 1) % CHECKPOINT_FRAMES == 0:
+                    state.write(final=False)
     except KeyboardInterrupt:
-        status, message = INTERRUPTED, "interrupted by the user (Ctrl-C)"
+        state.status, state.message = INTERRUPTED, "interrupted by the user (Ctrl-C)"
     except Exception as error:
-        status, message = ERROR, f"{type(error).__name__}: {error}"
+        state.status, state.message = ERROR, f"{type(error).__name__}: {error}"
         raise
     finally:
         progress.close()
-        if recorder is not None:
-            if message:
-                recorder.log_event(message, level="WARN")
-            recorder.close()
-        wall_s = time.perf_counter() - wall_start
-        meta.update({
-            "message": message, "sim_time_s": robot.time, "wall_time_s": wall_s,
-            "realtime_factor": robot.time / wall_s if wall_s > 0 else math.nan,
-            "reference_analysis_ms": {m: (sum(v) / len(v) if v else math.nan)
-                                      for m, v in tracker.analysis_ms.items()},
-        })
-        metrics = write(final=True)
+        metrics = state.finish()
     return metrics
+
+
+class _RunState:
+    """What one run has done so far, and its files.
+
+    It holds the robot, the scored records, the ITF streams, the reference tracker, the
+    recorder and how the run is ending (``status``, ``message``); ``meta`` becomes
+    metrics.json's "run" section. ``start`` starts the wall clock and the recording,
+    ``score_frame`` scores one frame, ``write`` writes the run folder (a cheap checkpoint while
+    running, or the final files with plots and recording), ``finish`` closes the recording and
+    writes the final files with how the run ended and its timing.
+    """
+
+    def __init__(self, scenario, methods: tuple[str, ...], out_dir: Path,
+                 max_frames: int | None, record: bool):
+        from sim.harness.scoring import ItfAccumulator
+
+        self.scenario, self.methods, self.out_dir = scenario, methods, out_dir
+        self.robot = scenario_robot(scenario)
+        self.recording_path = out_dir / RECORDING_RRD if record else None
+        self.scenario_dict = scenario.to_dict()
+        self.meta: dict[str, Any] = {
+            "seed": scenario.seed, "methods": list(methods),
+            "reference_policy": scenario.evaluation.reference, "scene": scenario.scene,
+            "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps,
+            "max_frames": max_frames,
+        }
+        self.records: list = []
+        self.itf = ItfAccumulator()
+        self.tracker = _ReferenceTracker(scenario.evaluation.reference, methods)
+        self.n_frames = int(math.floor(scenario.duration_s * scenario.sensor.fps))
+        if max_frames is not None:
+            self.n_frames = min(self.n_frames, max_frames)
+        self.status, self.message = COMPLETE, ""
+        self.previous_frame = None
+        self.recorder = None
+        self.wall_start = math.nan
+
+    def start(self) -> None:
+        """Start the wall clock and, if the run is recorded, the rerun recording."""
+        self.wall_start = time.perf_counter()
+        if self.recording_path is not None:
+            from sim.harness.recording import RunRecorder
+
+            self.recorder = RunRecorder(
+                self.recording_path, self.methods,
+                properties={"scenario": self.scenario_dict, "seed": self.scenario.seed},
+                frame_stride=self.scenario.recording.frame_stride,
+                recording_id=f"{self.scenario.name}-seed{self.scenario.seed}")
+
+    def score_frame(self, frame) -> None:
+        """Score ``frame`` against its reference with the truth and every method; log it."""
+        from sim.harness.ground_truth import ground_truth
+        from sim.harness.scoring import RAW_STREAM, FrameRecord
+
+        cycle = self.robot.gait_cycle
+        reference = self.tracker.reference_for(frame, cycle, self.previous_frame)
+        truth = ground_truth(reference, frame, reference_depth_m=reference.true_depth_m,
+                             current_depth_m=frame.true_depth_m)
+        estimates, compensated = {}, {}
+        for method in self.methods:
+            motion, ms = timed_estimate(self.tracker.stabilizers[method], frame.disparity8)
+            estimates[method] = motion
+            compensated[method] = compensate(frame.disparity8, motion)
+            self.records.append(FrameRecord.score(
+                frame_index=frame.index, time_s=frame.time_s, gait_cycle=cycle,
+                reference_index=reference.index, method=method, estimate=motion, truth=truth,
+                ms=ms))
+            self.itf.add(method, compensated[method], gait_cycle=cycle,
+                         reference_index=reference.index)
+        self.itf.add(RAW_STREAM, frame.disparity8, gait_cycle=cycle,
+                     reference_index=reference.index)
+        if self.recorder is not None:
+            self.recorder.log_frame(frame, estimates=estimates, truth=truth,
+                                    compensated=compensated,
+                                    robot_position=self.robot.torso_pose()[0])
+        self.previous_frame = frame
+
+    def end_with_fall(self) -> None:
+        """Mark the run as ended by the robot's fall."""
+        fall = self.robot.fall
+        self.status = FELL
+        self.message = f"the robot fell at {fall.time_s:.2f} s ({fall.reason})"
+        self.meta["fall"] = {"time_s": fall.time_s, "reason": fall.reason}
+
+    def write(self, final: bool) -> dict:
+        """Write the run folder; return metrics.json's content.
+
+        A checkpoint (``final=False``) has the status "running" and no plots; the final write
+        has the run's status, the plots and the recording's listing.
+        """
+        from sim.harness.report import write_run_outputs
+        from sim.harness.scoring import summarize
+
+        self.meta["frames_done"] = len(self.records) // max(len(self.methods), 1)
+        files = write_run_outputs(
+            self.out_dir, scenario=self.scenario_dict, records=self.records,
+            summary=summarize(self.records, self.itf), meta=self.meta,
+            status=self.status if final else "running", plots=final,
+            recording=self.recording_path if final else None)
+        return files.metrics
+
+    def finish(self) -> dict:
+        """Close the recording; add how the run ended and its timing to ``meta``; write the
+        final files and return metrics.json's content."""
+        if self.recorder is not None:
+            if self.message:
+                self.recorder.log_event(self.message, level="WARN")
+            self.recorder.close()
+        wall_s = time.perf_counter() - self.wall_start
+        self.meta.update({
+            "message": self.message, "sim_time_s": self.robot.time, "wall_time_s": wall_s,
+            "realtime_factor": self.robot.time / wall_s if wall_s > 0 else math.nan,
+            "reference_analysis_ms": {m: (sum(v) / len(v) if v else math.nan)
+                                      for m, v in self.tracker.analysis_ms.items()},
+        })
+        return self.write(final=True)
 
 
 def _progress_bar(total: int, name: str, enabled: bool):

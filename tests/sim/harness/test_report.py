@@ -11,7 +11,8 @@ import pytest
 from sim.harness.atomic import atomic_path, write_text_atomic
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
-from sim.harness.report import aggregate_runs, read_metrics, table_one, terminal_summary, write_run_outputs
+from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, read_metrics, score_rows,
+                                table_one, terminal_summary, write_run_outputs)
 from sim.harness.scoring import RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary, summarize
 from stabilizer.motion import Motion
 
@@ -144,6 +145,21 @@ def test_aggregate_runs_makes_one_table(run, tmp_path):
     assert len(lines) == 2 + 4
     assert lines[2].startswith("| run_a | corridor walk | complete | t2fuzzy | 40 |")
     assert lines[4].startswith("| run_b | lab | interrupted | t2fuzzy | 10 |")
+
+
+def test_score_rows_read_each_methods_figures_back_from_metrics(run, tmp_path):
+    _, files, records, summary = run
+    rows = score_rows(files.metrics)
+    assert [row["method"] for row in rows] == list(METHODS)
+    sift = rows[1]
+    assert sift["frames"] == 40 and sift["failure_rate"] == pytest.approx(0.1)
+    assert sift[MEAN_ERROR_COLUMNS["x"]] == summary.run["sift"].errors["x"].mean
+    assert sift["ms_per_frame"] == summary.run["sift"].ms_mean and sift["itf_db"] == 100.0
+    without_itf = write_run_outputs(tmp_path, scenario={}, records=records[:10],
+                                    summary=summarize(records[:10]), meta={},
+                                    status="complete", plots=False)
+    assert math.isnan(score_rows(without_itf.metrics)[0]["itf_db"])  # null in metrics.json
+    assert score_rows(None) == [] and score_rows({"summary": summarize([]).to_dict()}) == []
 
 
 def test_aggregate_rejects_folders_without_metrics(tmp_path):

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 import sim.harness.ground_truth
+import sim.harness.report
+import sim.harness.runner
 from scenarios import SCENARIOS_DIR
 from sim.harness.runner import RunConfig, run
 from sim.world.sensor.sr4000 import SR4000
@@ -90,6 +92,21 @@ def test_interrupt_ends_cleanly_with_complete_files(tmp_path, monkeypatch):
     assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
     assert (run_dir / "recording.rrd").stat().st_size > 0
     assert not list(run_dir.glob(".*.tmp"))
+
+
+def test_checkpoints_are_written_every_checkpoint_frames(tmp_path, monkeypatch):
+    written = []
+    real_write = sim.harness.report.write_run_outputs
+
+    def spy(run_dir, **kwargs):
+        written.append((kwargs["status"], len(kwargs["records"]), kwargs["plots"]))
+        return real_write(run_dir, **kwargs)
+
+    monkeypatch.setattr(sim.harness.runner, "CHECKPOINT_FRAMES", 5)
+    monkeypatch.setattr(sim.harness.report, "write_run_outputs", spy)
+    metrics, _ = _short_run(tmp_path, methods=("ecc",))
+    assert written == [("running", 5, False), ("running", 10, False), ("complete", 12, True)]
+    assert metrics["run"]["frames_done"] == 12
 
 
 def test_a_pushed_robot_falls_and_the_run_says_so(tmp_path, monkeypatch):

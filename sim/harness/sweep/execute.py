@@ -1,0 +1,139 @@
+"""Running a sweep: the runs not yet done, on a local process pool or on Ray, then the table.
+
+Runs go to a local process pool (``spawn`` start method: an EGL context made in a parent breaks
+in forked children; docs/design.md, "Parallel runs") or, with ``backend="ray"``, to a Ray
+cluster (the optional extra ``cluster``). On a cluster of several machines, ``out_dir`` must be
+on a shared file system for the run files and for resuming; the table itself is built from the
+metrics the runs return. A run that raises is reported in the table and does not stop the
+others.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
+from typing import Any
+
+from sim.harness.runner import RunConfig, run
+from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
+from sim.harness.sweep.spec import SweepSpec
+from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
+from sim.harness.sweep.validation import is_int
+
+BACKENDS = ("local", "ray")
+
+
+def run_sweep(spec: SweepSpec, out_dir: str | os.PathLike, backend: str = "local",
+              workers: int | None = None, ray_address: str | None = None,
+              run_fn: Callable[[RunConfig], dict] = run, progress: bool = False) -> SweepResult:
+    """Run every run of ``spec`` not yet complete, then write the table and the plots.
+
+    Args:
+        spec: from :func:`load_sweep`.
+        out_dir: the sweep's folder (see the package docstring for its layout).
+        backend: ``"local"`` (a process pool on this machine, spawn start method) or ``"ray"``.
+        workers: runs at a time; default: ``os.cpu_count()`` locally, the cluster's free CPUs
+            on Ray.
+        ray_address: for Ray: ``"auto"`` joins a running cluster, an address such as
+            ``"ray://head:10001"`` a remote one; None uses ``$RAY_ADDRESS`` if set, else starts
+            a local instance. Ignored if Ray is already initialised in this process.
+        run_fn: the run function, a picklable ``RunConfig -> metrics dict`` (tests pass a fake).
+        progress: show a progress bar of finished runs.
+
+    Returns:
+        A :class:`SweepResult`; runs that raised are in ``result.failed``, not raised here.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown sweep backend {backend!r}; accepted: {', '.join(BACKENDS)}")
+    if workers is not None and (not is_int(workers) or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1 (or None for every core); "
+                         f"got {workers!r}")
+    if backend == "ray":
+        _import_ray()  # fail before anything is written if the extra is missing
+    out_dir = Path(out_dir)
+    plan = plan_sweep(spec, out_dir)
+    done, pending = split_done(plan)
+    outcomes = {outcome.run.name: outcome for outcome in done}
+    execute = _run_local if backend == "local" else _run_ray
+    try:
+        for outcome in _with_progress(execute(pending, run_fn, workers, ray_address),
+                                      len(pending), progress):
+            outcomes[outcome.run.name] = outcome
+    finally:  # also on Ctrl-C: the table shows what finished
+        ordered = tuple(outcomes[r.name] for r in plan if r.name in outcomes)
+        result = write_sweep_outputs(out_dir, spec, ordered)
+    return result
+
+
+def _with_progress(outcomes: Iterator[RunOutcome], total: int, progress: bool):
+    if not progress:
+        return outcomes
+    from tqdm import tqdm
+
+    return tqdm(outcomes, total=total, desc="sweep runs", unit="run")
+
+
+def _describe(error: BaseException) -> str:
+    return f"{type(error).__name__}: {error}".splitlines()[0]
+
+
+def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
+               ray_address: str | None) -> Iterator[RunOutcome]:
+    """Runs in a spawn process pool; yields outcomes as runs finish."""
+    if not pending:
+        return
+    workers = min(workers or os.cpu_count() or 1, len(pending))
+    pool = ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures = {pool.submit(run_fn, sweep_run.config): sweep_run for sweep_run in pending}
+        remaining = set(futures)
+        while remaining:
+            done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
+            for future in done:
+                error = future.exception()
+                yield (RunOutcome(futures[future], None, error=_describe(error)) if error
+                       else RunOutcome(futures[future], future.result()))
+    finally:  # on Ctrl-C or an abandoned generator: drop queued runs, let started ones end
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _import_ray():
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError("the Ray backend needs Ray, an optional extra: "
+                          "pip install -e \".[cluster]\" (or pip install \"ray>=2.9\")") from error
+    return ray
+
+
+def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
+             ray_address: str | None) -> Iterator[RunOutcome]:
+    """Runs as Ray tasks (one CPU each), at most ``workers`` at a time if given."""
+    ray = _import_ray()
+    if not pending:
+        return
+    started_here = not ray.is_initialized()
+    if started_here:
+        ray.init(address=ray_address, include_dashboard=False)
+    try:
+        remote_run = ray.remote(num_cpus=1, max_retries=0)(run_fn)
+        queue = list(pending)
+        in_flight: dict[Any, SweepRun] = {}
+        while queue or in_flight:
+            while queue and (workers is None or len(in_flight) < workers):
+                sweep_run = queue.pop(0)
+                in_flight[remote_run.remote(sweep_run.config)] = sweep_run
+            [ready], _ = ray.wait(list(in_flight), num_returns=1)
+            sweep_run = in_flight.pop(ready)
+            try:
+                yield RunOutcome(sweep_run, ray.get(ready))
+            except ray.exceptions.RayError as error:
+                cause = getattr(error, "cause", None) or error
+                yield RunOutcome(sweep_run, None, error=_describe(cause))
+    finally:
+        if started_here:
+            ray.shutdown()

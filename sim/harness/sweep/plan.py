@@ -1,0 +1,103 @@
+"""A sweep's runs: one RunConfig per (scenario, seed, noise level), and which are done already.
+
+Each run writes to ``<out_dir>/runs/<scenario>__seed<seed>__noise<level>/``. A run whose
+metrics.json says ``"status": "complete"`` (or ``"fell"``) is done and is not run again, so an
+interrupted sweep is resumed by running it again.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from sim.harness.report import METRICS_JSON, read_metrics
+from sim.harness.runner import COMPLETE, FELL, RunConfig
+from sim.harness.sweep.spec import SweepError, SweepSpec, scenario_label
+
+#: Run statuses (metrics.json "status") that count as done: such runs are not run again (a
+#: fall is as final as a complete run: the same seed falls again).
+DONE_STATUSES = (COMPLETE, FELL)
+RUNS_FOLDER = "runs"
+
+
+@dataclass(frozen=True)
+class SweepRun:
+    """One run of a sweep: its folder name, what it varies, and its RunConfig."""
+
+    name: str
+    scenario: str
+    seed: int
+    noise_level: float
+    config: RunConfig
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What became of one run: its metrics (None if it raised), and how it went."""
+
+    run: SweepRun
+    metrics: dict | None
+    skipped: bool = False
+    error: str = ""
+
+    @property
+    def status(self) -> str:
+        if self.error:
+            return f"error: {self.error}"
+        return str((self.metrics or {}).get("status", "unknown"))
+
+
+def plan_sweep(spec: SweepSpec, out_dir: str | os.PathLike) -> list[SweepRun]:
+    """Every run of ``spec``, in file order (scenario, then seed, then noise level)."""
+    runs = []
+    for scenario in spec.scenarios:
+        for seed in spec.seeds:
+            for level in spec.noise_levels:
+                name = f"{scenario_label(scenario)}__seed{seed}__noise{level!r}"
+                config = RunConfig(
+                    scenario=scenario, out_dir=str(Path(out_dir) / RUNS_FOLDER / name),
+                    methods=spec.methods, record=spec.record, max_frames=spec.max_frames,
+                    seed=seed, overrides={**spec.overrides, spec.noise_key: level})
+                runs.append(SweepRun(name, scenario_label(scenario), seed, level, config))
+    names = [r.name for r in runs]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise SweepError(spec.source, "scenarios", f"two scenarios share the name(s) "
+                         f"{', '.join(duplicates)}", "scenarios with distinct file names")
+    return runs
+
+
+def expand_sweep(spec: SweepSpec, out_dir: str | os.PathLike) -> list[RunConfig]:
+    """The RunConfig of every run of ``spec``; run folders are ``<out_dir>/runs/<name>``."""
+    return [sweep_run.config for sweep_run in plan_sweep(spec, out_dir)]
+
+
+def default_sweep_dir(spec: SweepSpec, results: str | os.PathLike = "results") -> Path:
+    """Where a sweep writes unless told otherwise: ``results/sweeps/<name>``."""
+    return Path(results) / "sweeps" / spec.name
+
+
+def completed_metrics(run_dir: str | os.PathLike) -> dict | None:
+    """The metrics of a finished run in ``run_dir``, or None if it must (re)run."""
+    path = Path(run_dir) / METRICS_JSON
+    if not path.is_file():
+        return None
+    try:
+        document = read_metrics(path)
+    except ValueError:  # unreadable or foreign: run it again
+        return None
+    return document if document.get("status") in DONE_STATUSES else None
+
+
+def split_done(plan: Sequence[SweepRun]) -> tuple[list[RunOutcome], list[SweepRun]]:
+    """The runs of ``plan`` already done (as skipped outcomes) and those still to run."""
+    done, pending = [], []
+    for sweep_run in plan:
+        metrics = completed_metrics(sweep_run.config.out_dir)
+        if metrics is None:
+            pending.append(sweep_run)
+        else:
+            done.append(RunOutcome(sweep_run, metrics, skipped=True))
+    return done, pending

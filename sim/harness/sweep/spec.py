@@ -1,0 +1,204 @@
+"""A sweep file and its validation.
+
+A sweep file (TOML) lists what to vary; every combination of scenario, seed and noise level is
+one run of ``sim.harness.runner.run`` (each run scores all the sweep's methods on the same
+simulated frames, so methods are not a run dimension). Example
+(``scenarios/sweeps/noise_sweep.toml``)::
+
+    name = "noise_sweep"                      # default: the file's stem
+    description = "error against sensor noise"
+    scenarios = ["corridor_straight", "lab_clutter"]  # shipped names, or TOML paths
+                                              # (relative paths: from the sweep file's folder)
+    seeds = [0, 1]                            # integers >= 0, distinct
+    noise_levels = [0.5, 1.0, 2.0, 4.0]       # numbers, distinct; each is written to noise_key
+    noise_key = "sensor.noise_scale"          # default; any dotted scenario key
+    methods = ["t2fuzzy", "sift"]             # default: each scenario's own list
+    max_frames = 90                           # default: the scenario's whole duration
+    record = false                            # rerun recordings; default false
+
+    [overrides]                               # optional: dotted scenario keys for every run
+    "evaluation.reference" = "previous"
+
+Unknown keys, wrong types and out-of-range values raise :class:`SweepError` (a ValueError)
+naming the file, the key and what is allowed. Every (scenario, noise level) is also loaded
+through ``sim.harness.scenario.load_scenario`` before anything runs, so a noise level the
+scenario rejects fails at once, not after hours of other runs.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.harness.report import safe_name
+from sim.harness.runner import scenario_name
+from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
+from sim.harness.sweep.validation import (Fail, distinct_list, is_dotted_key, is_finite_number,
+                                          is_int, is_safe_name)
+from stabilizer.api import available_methods
+
+DEFAULT_NOISE_KEY = "sensor.noise_scale"
+#: Keys of a sweep file -> what is allowed (the module docstring shows them in use).
+ALLOWED = {
+    "name": "a non-empty name of letters, digits, '_', '-', '.' (default: the file's stem)",
+    "description": "free text",
+    "scenarios": "a non-empty list of distinct shipped scenario names or TOML paths",
+    "seeds": "a non-empty list of distinct integers >= 0",
+    "noise_levels": "a non-empty list of distinct finite numbers",
+    "noise_key": "a dotted scenario key such as sensor.noise_scale",
+    "methods": f"a non-empty list of distinct names from {', '.join(available_methods())}",
+    "max_frames": "an integer >= 1",
+    "record": "true or false",
+    "overrides": "a table of dotted scenario keys -> single values (not seed, not the noise "
+                 "key)",
+}
+_REQUIRED = ("scenarios", "seeds", "noise_levels")
+
+
+class SweepError(ScenarioError):
+    """A sweep file that cannot run: names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep (see the module docstring for the file layout).
+
+    Attributes:
+        name: the sweep's name.
+        scenarios: scenario names (shipped) or absolute TOML paths, in the file's order.
+        seeds, noise_levels: the values swept, in the file's order.
+        noise_key: the dotted scenario key each noise level is written to.
+        methods: methods every run scores; None = each scenario's own list.
+        max_frames: frames per run; None = the scenario's duration.
+        record: write rerun recordings.
+        overrides: dotted scenario keys -> values applied to every run.
+        description, source: free text; the file the spec came from.
+    """
+
+    name: str
+    scenarios: tuple[str, ...]
+    seeds: tuple[int, ...]
+    noise_levels: tuple[float, ...]
+    noise_key: str = DEFAULT_NOISE_KEY
+    methods: tuple[str, ...] | None = None
+    max_frames: int | None = None
+    record: bool = False
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    description: str = ""
+    source: str = "<dict>"
+
+    @property
+    def n_runs(self) -> int:
+        return len(self.scenarios) * len(self.seeds) * len(self.noise_levels)
+
+
+def scenario_label(scenario: str) -> str:
+    """Short name of a scenario entry: a shipped name, or a TOML file's stem."""
+    return safe_name(scenario_name(scenario))
+
+
+def load_sweep(path: str | os.PathLike) -> SweepSpec:
+    """Read and validate a sweep file; relative scenario paths are taken from its folder."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            raw = tomllib.load(handle)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no sweep file {path}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise SweepError(str(path), "(file)", f"not valid TOML ({error})", "TOML 1.0") from None
+    raw.setdefault("name", safe_name(path.stem))
+    return sweep_from_dict(raw, source=str(path), base_dir=path.parent)
+
+
+def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
+                    base_dir: str | os.PathLike = ".") -> SweepSpec:
+    """Validate a sweep given as a (TOML-like) dict; ``source`` names it in errors."""
+    def fail(key: str, problem: str) -> SweepError:
+        return SweepError(source, key, problem, ALLOWED[key.split("[")[0]])
+
+    for key in raw:
+        if key not in ALLOWED:
+            raise SweepError(source, str(key), "unknown key", f"keys {', '.join(ALLOWED)}")
+    for key in _REQUIRED:
+        if key not in raw:
+            raise fail(key, "missing")
+    name = raw.get("name", "sweep")
+    if not is_safe_name(name):
+        raise fail("name", f"got {name!r}")
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        raise fail("description", f"got {description!r}")
+    noise_key = raw.get("noise_key", DEFAULT_NOISE_KEY)
+    if not is_dotted_key(noise_key) or noise_key == "seed":
+        raise fail("noise_key", f"got {noise_key!r}")
+    max_frames = raw.get("max_frames")
+    if max_frames is not None and not (is_int(max_frames) and max_frames >= 1):
+        raise fail("max_frames", f"got {max_frames!r}")
+    record = raw.get("record", False)
+    if not isinstance(record, bool):
+        raise fail("record", f"got {record!r}")
+    overrides = _checked_overrides(raw.get("overrides", {}), noise_key, fail)
+
+    scenarios = distinct_list(raw["scenarios"], "scenarios", fail,
+                              lambda v: isinstance(v, str) and bool(v.strip()))
+    seeds = distinct_list(raw["seeds"], "seeds", fail, lambda v: is_int(v) and v >= 0)
+    noise_levels = tuple(float(v) for v in distinct_list(
+        raw["noise_levels"], "noise_levels", fail, is_finite_number))
+    methods = raw.get("methods")
+    if methods is not None:
+        methods = distinct_list(methods, "methods", fail,
+                                lambda v: isinstance(v, str) and v in available_methods())
+
+    resolved = tuple(_resolve_scenario(entry, index, Path(base_dir), fail)
+                     for index, entry in enumerate(scenarios))
+    spec = SweepSpec(name=name, scenarios=resolved, seeds=seeds, noise_levels=noise_levels,
+                     noise_key=noise_key, methods=methods, max_frames=max_frames,
+                     record=record, overrides=overrides, description=description,
+                     source=source)
+    _check_runs_load(spec)
+    return spec
+
+
+def _checked_overrides(overrides: Any, noise_key: str, fail: Fail) -> dict:
+    """The ``[overrides]`` table as a dict: single values under dotted keys, not the swept ones."""
+    if not isinstance(overrides, Mapping):
+        raise fail("overrides", f"got {overrides!r}")
+    for key, value in overrides.items():
+        if key in ("seed", noise_key) or not is_dotted_key(str(key)):
+            raise fail("overrides", f"key {key!r} is not allowed here (seed and {noise_key} "
+                                    "come from the sweep's lists)")
+        if isinstance(value, Mapping):  # it would replace the scenario's whole table
+            raise fail("overrides", f"{key!r} is a table; write one dotted key per value, "
+                                    f"e.g. \"{key}.{next(iter(value), 'field')}\" = ...")
+    return dict(overrides)
+
+
+def _resolve_scenario(entry: str, index: int, base_dir: Path, fail: Fail) -> str:
+    """A shipped name stays a name; a path becomes absolute (from the sweep file's folder)."""
+    is_path = entry.endswith(".toml") or "/" in entry or os.sep in entry
+    target = Path(entry) if Path(entry).is_absolute() or not is_path else base_dir / entry
+    try:
+        found = resolve_scenario_path(str(target))
+    except FileNotFoundError as error:
+        raise fail(f"scenarios[{index}]", str(error)) from None
+    return str(found.resolve()) if is_path else entry
+
+
+def _check_runs_load(spec: SweepSpec) -> None:
+    """Load every (scenario, noise level) now, so a bad combination fails before any run."""
+    for scenario in spec.scenarios:
+        for index, level in enumerate(spec.noise_levels):
+            try:
+                load_scenario(scenario, {**spec.overrides, spec.noise_key: level})
+            except ScenarioError as error:
+                key = (f"noise_levels[{index}]" if error.key == spec.noise_key
+                       else "overrides" if error.key in spec.overrides
+                       else f"scenarios[{spec.scenarios.index(scenario)}]")
+                raise SweepError(spec.source, key, f"scenario {scenario_label(scenario)} with "
+                                 f"{spec.noise_key} = {level!r} is refused ({error})",
+                                 "values every scenario of the sweep accepts") from None
