@@ -97,24 +97,26 @@ class _ReferenceTracker:
         return self.frame
 
 
-def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0):
+def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0,
+                scene_params: Mapping[str, Any] | None = None):
     """Scene ``scene_name`` with the humanoid standing at its start, ready to walk.
 
-    ``gait`` is a GaitParams or a preset name; ``seed`` perturbs the initial joint angles.
+    ``gait`` is a GaitParams or a preset name; ``seed`` perturbs the initial joint angles;
+    ``scene_params`` are the scene's keyword parameters (docs/scenes.md).
     """
     from sim.world.scenes import build_scene
     from sim.world.walking import RobotSimulation
     from sim.world.assembly import assemble, compile_world
 
-    scene = build_scene(scene_name, scene_seed)
+    scene = build_scene(scene_name, scene_seed, **(scene_params or {}))
     model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
     return RobotSimulation(model, gait=gait, seed=seed)
 
 
 def scenario_robot(scenario):
-    """The robot of a loaded scenario: its scene, gait and seed."""
+    """The robot of a loaded scenario: its scene and scene parameters, gait and seed."""
     return build_robot(scenario.scene, scenario.scene_seed, scenario.gait.params(),
-                       scenario.seed)
+                       scenario.seed, scenario.scene_params)
 
 
 def open_sensor(scenario, robot):

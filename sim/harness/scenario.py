@@ -60,6 +60,7 @@ import numpy as np
 from scenarios import SCENARIOS_DIR
 from sim.world.scenes import SCENES, SceneParameterError, scene_layout
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
+from sim.harness.validation import FileValueError, is_finite_number, is_int
 from stabilizer.api import available_methods
 
 REFERENCE_POLICIES = ("cycle_start", "previous", "first")
@@ -67,15 +68,8 @@ REFERENCE_POLICIES = ("cycle_start", "previous", "first")
 MAX_DURATION_S = 3600.0
 
 
-class ScenarioError(ValueError):
+class ScenarioError(FileValueError):
     """A scenario file that cannot run: names the file, the key and what is allowed."""
-
-    def __init__(self, source: str, key: str, problem: str, allowed: str):
-        self.source, self.key, self.problem, self.allowed = source, key, problem, allowed
-        super().__init__(f"{source}: {key}: {problem}; allowed: {allowed}")
-
-    def __reduce__(self):  # picklable, so a process pool can report it
-        return ScenarioError, (self.source, self.key, self.problem, self.allowed)
 
 
 def _key(default, allowed: str, check=None, doc: str = ""):
@@ -276,9 +270,8 @@ def _coerce(value, kind, source, key, allowed):
     """``value`` as ``kind`` (bool, int, float, str, tuple of str) or a ScenarioError."""
     ok = {
         bool: isinstance(value, bool),
-        int: isinstance(value, int) and not isinstance(value, bool),
-        float: isinstance(value, (int, float)) and not isinstance(value, bool)
-        and math.isfinite(value),
+        int: is_int(value),
+        float: is_finite_number(value),
         str: isinstance(value, str),
         tuple: isinstance(value, list) and all(isinstance(v, str) for v in value),
     }[kind]
@@ -381,14 +374,19 @@ def _set_dotted(raw: dict, dotted: str, value, source: str) -> None:
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A scenario file from a path, or from the name of a shipped one."""
     path = Path(name_or_path)
+    accepted = "a scenario TOML file, or the name of a shipped one (egostab list)"
     if path.suffix == ".toml" or path.exists():
+        if path.is_dir():
+            raise FileNotFoundError(f"{path} is a folder, not a scenario file; accepted: "
+                                    f"{accepted}")
         if not path.is_file():
-            raise FileNotFoundError(f"no scenario file {path}")
+            raise FileNotFoundError(f"no scenario file {path}; accepted: {accepted}")
         return path
     shipped = SCENARIOS_DIR / f"{name_or_path}.toml"
     if not shipped.is_file():
         names = ", ".join(p.stem for p in list_scenarios())
-        raise FileNotFoundError(f"no scenario {name_or_path!r}; shipped: {names}")
+        raise FileNotFoundError(f"no scenario {name_or_path!r}; accepted: a scenario TOML "
+                                f"file, or one of the shipped scenarios: {names}")
     return shipped
 
 

@@ -21,7 +21,7 @@ from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
-from sim.harness.sweep.validation import is_int
+from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
 

@@ -37,8 +37,8 @@ from typing import Any
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
 from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
-from sim.harness.sweep.validation import (Fail, distinct_list, is_dotted_key, is_finite_number,
-                                          is_int, is_safe_name)
+from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key,
+                                    is_finite_number, is_int, is_safe_name)
 from stabilizer.api import available_methods
 
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
@@ -59,7 +59,7 @@ ALLOWED = {
 _REQUIRED = ("scenarios", "seeds", "noise_levels")
 
 
-class SweepError(ScenarioError):
+class SweepError(FileValueError):
     """A sweep file that cannot run: names the file, the key and what is allowed."""
 
 

@@ -165,3 +165,18 @@ def test_robot_walks_each_shipped_scenario_without_touching_anything(name):
     walk_until(scenario, robot, scenario.duration_s)  # a fall is recorded, never raised
     assert robot.fall is None, robot.fall
     assert np.linalg.norm(robot.torso_pose()[0][:2] - start[:2]) > 1.0  # it really walked
+
+
+def test_scene_params_of_a_scenario_shape_the_walked_scene():
+    from sim.harness.runner import scenario_robot
+    from sim.harness.scenario import load_scenario
+
+    default = scenario_robot(load_scenario(CI_CORRIDOR))
+    wide = scenario_robot(load_scenario(CI_CORRIDOR,
+                                        {"scene_params.half_width_m": [1.2, 1.2]}))
+
+    def walls_at_1_2_m(model):  # the corridor's side walls run at y = +-half_width_m
+        return sum(abs(abs(model.body(i).pos[1]) - 1.2) < 1e-9 for i in range(model.nbody)
+                   if model.body(i).name.startswith("wall"))
+
+    assert walls_at_1_2_m(wide.model) >= 2 and walls_at_1_2_m(default.model) == 0

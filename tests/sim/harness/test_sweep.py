@@ -21,8 +21,6 @@ from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, SweepError,
                                completed_metrics, expand_sweep, load_sweep, plan_sweep,
                                run_sweep, sweep_from_dict)
-from sim.harness.sweep.validation import (distinct_list, is_dotted_key, is_finite_number,
-                                          is_int, is_safe_name)
 
 EXAMPLE_SWEEP = SCENARIOS_DIR / "sweeps" / "noise_sweep.toml"
 METHODS = ("t2fuzzy", "sift")
@@ -163,21 +161,6 @@ def test_invalid_sweeps_name_the_file_the_key_and_what_is_allowed(changes, key, 
     assert isinstance(info.value, ValueError)
     assert message.startswith(f"tiny.toml: {key}: "), message
     assert allowed in message.split("; allowed: ")[-1], message
-
-
-def test_validation_helpers_accept_and_name_the_bad_item():
-    def fail(key, problem):
-        return ValueError(f"{key}: {problem}")
-
-    assert distinct_list([3, 1], "seeds", fail, is_int) == (3, 1)
-    for value, message in [([], r"^seeds: got \[\]"), ([1, True], r"^seeds\[1\]: got True"),
-                           ([1, 1], r"^seeds\[1\]: 1 is listed twice")]:
-        with pytest.raises(ValueError, match=message):
-            distinct_list(value, "seeds", fail, is_int)
-    assert is_finite_number(2) and is_finite_number(0.5)
-    assert not any(is_finite_number(v) for v in (True, math.inf, math.nan, "1"))
-    assert is_dotted_key("sensor.noise_scale") and not is_dotted_key("sensor..noise")
-    assert is_safe_name("noise_sweep-2.b") and not is_safe_name("a/b") and not is_safe_name("")
 
 
 def test_missing_required_key_and_bad_toml_are_named(tmp_path):

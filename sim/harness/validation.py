@@ -1,8 +1,9 @@
-"""Checks of values read from a TOML file, for validators that name the key and what is allowed.
+"""Validation of the harness's input files (scenarios, sweeps): the error and the value checks.
 
-The predicates say whether one value is acceptable; ``distinct_list`` checks a list item by item
-and raises the error its caller builds (``fail(key, problem)``), naming the item as
-``key[index]``. None of them knows about sweeps, so any file validator can use them.
+Every file validator reports a bad value the same way, with :class:`FileValueError`: the file,
+the key, what is wrong and what is allowed, on one line. The predicates say whether one value is
+acceptable; ``distinct_list`` checks a list item by item and raises the error its caller builds
+(``fail(key, problem)``), naming the item as ``key[index]``.
 """
 
 from __future__ import annotations
@@ -19,6 +20,17 @@ DOTTED_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
 
 #: Builds the error of a bad value from its key and the problem found.
 Fail = Callable[[str, str], Exception]
+
+
+class FileValueError(ValueError):
+    """A value in an input file that cannot be used: names the file, the key and what is allowed."""
+
+    def __init__(self, source: str, key: str, problem: str, allowed: str):
+        self.source, self.key, self.problem, self.allowed = source, key, problem, allowed
+        super().__init__(f"{source}: {key}: {problem}; allowed: {allowed}")
+
+    def __reduce__(self):  # picklable, so a process pool can report it
+        return type(self), (self.source, self.key, self.problem, self.allowed)
 
 
 def is_int(value: Any) -> bool:
