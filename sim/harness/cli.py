@@ -214,17 +214,20 @@ def _describe_os_error(error: OSError) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
+
     args = build_parser().parse_args(argv)
     try:
-        return args.handler(args)
+        with stop_signals_interrupt():
+            return args.handler(args)
     except ValueError as error:  # bad input named by the layer that found it
         print(f"egostab {args.command}: error: {error}", file=sys.stderr)
         return 2
     except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
         print(f"egostab {args.command}: error: {_describe_os_error(error)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"egostab {args.command}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as interrupt:
+        print(f"egostab {args.command}: {interrupt_reason(interrupt)}", file=sys.stderr)
         return 130
 
 

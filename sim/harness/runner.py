@@ -21,11 +21,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
 from stabilizer import Stabilizer, compensate
 from stabilizer.motion import Motion
 
 #: Statuses a run can end with (metrics.json "status").
 COMPLETE, FELL, INTERRUPTED, ERROR = "complete", "fell", "interrupted", "error"
+#: The status of a run folder until its final write (at checkpoints, or after a second interrupt).
+INCOMPLETE = "incomplete"
 #: Name of the recording in a run folder.
 RECORDING_RRD = "recording.rrd"
 #: Frames between checkpoints of frames.csv / metrics.json during a run.
@@ -162,8 +165,10 @@ def run(config: RunConfig) -> dict:
     """Run the scenario of ``config``; return the metrics dict also written to metrics.json.
 
     The run's status is "complete", "fell" (the robot fell: frames up to the fall are
-    scored), "interrupted" (Ctrl-C) or "error" (an exception, re-raised after the files of
-    the finished frames are written).
+    scored), "interrupted" (Ctrl-C, SIGTERM or SIGHUP; the message says which) or "error" (an
+    exception, re-raised after the files of the finished frames are written). Until the final
+    write, metrics.json says "incomplete" (written at the start and at every checkpoint); it is
+    written last, so a second interrupt during the final write leaves the folder saying so.
     """
     # Imports here keep `import sim.harness.runner` light for process pools that only pickle configs.
     from sim.harness.scenario import load_scenario
@@ -180,26 +185,27 @@ def run(config: RunConfig) -> dict:
 
     state = _RunState(scenario, methods, out_dir, config.max_frames,
                       record=config.record and scenario.recording.enabled)
-    state.start()
-    progress = _progress_bar(state.n_frames, scenario.name, config.progress)
-    try:
-        with open_sensor(scenario, state.robot) as sensor:
-            for frame in walk_frames(scenario, state.robot, sensor, state.n_frames):
-                state.score_frame(frame)
-                progress.update(1)
-                if state.robot.fall is not None:
-                    state.end_with_fall()
-                    break
-                if (frame.index + 1) % CHECKPOINT_FRAMES == 0:
-                    state.write(final=False)
-    except KeyboardInterrupt:
-        state.status, state.message = INTERRUPTED, "interrupted by the user (Ctrl-C)"
-    except Exception as error:
-        state.status, state.message = ERROR, f"{type(error).__name__}: {error}"
-        raise
-    finally:
-        progress.close()
-        metrics = state.finish()
+    with stop_signals_interrupt():
+        state.start()
+        progress = _progress_bar(state.n_frames, scenario.name, config.progress)
+        try:
+            with open_sensor(scenario, state.robot) as sensor:
+                for frame in walk_frames(scenario, state.robot, sensor, state.n_frames):
+                    state.score_frame(frame)
+                    progress.update(1)
+                    if state.robot.fall is not None:
+                        state.end_with_fall()
+                        break
+                    if (frame.index + 1) % CHECKPOINT_FRAMES == 0:
+                        state.write(final=False)
+        except KeyboardInterrupt as interrupt:
+            state.status, state.message = INTERRUPTED, interrupt_reason(interrupt)
+        except Exception as error:
+            state.status, state.message = ERROR, f"{type(error).__name__}: {error}"
+            raise
+        finally:
+            progress.close()
+            metrics = state.finish()
     return metrics
 
 
@@ -240,7 +246,9 @@ class _RunState:
         self.wall_start = math.nan
 
     def start(self) -> None:
-        """Start the wall clock and, if the run is recorded, the rerun recording."""
+        """Start the wall clock and, if the run is recorded, the rerun recording; mark the
+        folder incomplete until the final write."""
+        self.write(final=False)
         self.wall_start = time.perf_counter()
         if self.recording_path is not None:
             from sim.harness.recording import RunRecorder
@@ -289,8 +297,8 @@ class _RunState:
     def write(self, final: bool) -> dict:
         """Write the run folder; return metrics.json's content.
 
-        A checkpoint (``final=False``) has the status "running" and no plots; the final write
-        has the run's status, the plots and the recording's listing.
+        A checkpoint (``final=False``) has the status "incomplete" and no plots; the final
+        write has the run's status, the plots and the recording's listing.
         """
         from sim.harness.report import write_run_outputs
         from sim.harness.scoring import summarize
@@ -299,7 +307,7 @@ class _RunState:
         files = write_run_outputs(
             self.out_dir, scenario=self.scenario_dict, records=self.records,
             summary=summarize(self.records, self.itf), meta=self.meta,
-            status=self.status if final else "running", plots=final,
+            status=self.status if final else INCOMPLETE, plots=final,
             recording=self.recording_path if final else None)
         return files.metrics
 

@@ -24,6 +24,8 @@ from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
+#: Seconds an interrupted sweep waits for its cancelled Ray runs to write their files.
+RAY_CANCEL_WAIT_S = 60.0
 
 
 def run_sweep(spec: SweepSpec, out_dir: str | os.PathLike, backend: str = "local",
@@ -97,7 +99,13 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
                 error = future.exception()
                 yield (RunOutcome(futures[future], None, error=_describe(error)) if error
                        else RunOutcome(futures[future], future.result()))
-    finally:  # on Ctrl-C or an abandoned generator: drop queued runs, let started ones end
+    except BaseException:
+        # Ctrl-C reaches the workers from the terminal; SIGTERM and SIGHUP reach only this
+        # process, so pass the stop on: each started run then ends with complete files.
+        for worker in multiprocessing.active_children():
+            worker.terminate()
+        raise
+    finally:  # also for an abandoned generator: drop queued runs, let started ones end
         pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -119,10 +127,10 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
     started_here = not ray.is_initialized()
     if started_here:
         ray.init(address=ray_address, include_dashboard=False)
+    in_flight: dict[Any, SweepRun] = {}
     try:
         remote_run = ray.remote(num_cpus=1, max_retries=0)(run_fn)
         queue = list(pending)
-        in_flight: dict[Any, SweepRun] = {}
         while queue or in_flight:
             while queue and (workers is None or len(in_flight) < workers):
                 sweep_run = queue.pop(0)
@@ -134,6 +142,13 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
             except ray.exceptions.RayError as error:
                 cause = getattr(error, "cause", None) or error
                 yield RunOutcome(sweep_run, None, error=_describe(cause))
+    except BaseException:
+        # A cancelled task gets a KeyboardInterrupt: its run ends with complete files.
+        for reference in in_flight:
+            ray.cancel(reference)
+        if in_flight:
+            ray.wait(list(in_flight), num_returns=len(in_flight), timeout=RAY_CANCEL_WAIT_S)
+        raise
     finally:
         if started_here:
             ray.shutdown()

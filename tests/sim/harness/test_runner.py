@@ -94,6 +94,34 @@ def test_interrupt_ends_cleanly_with_complete_files(tmp_path, monkeypatch):
     assert not list(run_dir.glob(".*.tmp"))
 
 
+def test_a_second_interrupt_during_the_final_write_leaves_the_folder_saying_incomplete(
+        tmp_path, monkeypatch):
+    real_ground_truth = sim.harness.ground_truth.ground_truth
+    real_write = sim.harness.report.write_run_outputs
+    calls = []
+
+    def interrupt_on_fourth(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real_ground_truth(*args, **kwargs)
+
+    def interrupted_again_in_the_final_write(run_dir, **kwargs):
+        if kwargs["plots"]:
+            raise KeyboardInterrupt
+        return real_write(run_dir, **kwargs)
+
+    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_fourth)
+    monkeypatch.setattr(sim.harness.report, "write_run_outputs",
+                        interrupted_again_in_the_final_write)
+    with pytest.raises(KeyboardInterrupt):
+        _short_run(tmp_path, record=True)
+    run_dir = tmp_path / "run"
+    assert json.loads((run_dir / "metrics.json").read_text())["status"] == "incomplete"
+    assert (run_dir / "recording.rrd").stat().st_size > 0
+    assert not list(run_dir.glob(".*.tmp"))
+
+
 def test_checkpoints_are_written_every_checkpoint_frames(tmp_path, monkeypatch):
     written = []
     real_write = sim.harness.report.write_run_outputs
@@ -105,7 +133,8 @@ def test_checkpoints_are_written_every_checkpoint_frames(tmp_path, monkeypatch):
     monkeypatch.setattr(sim.harness.runner, "CHECKPOINT_FRAMES", 5)
     monkeypatch.setattr(sim.harness.report, "write_run_outputs", spy)
     metrics, _ = _short_run(tmp_path, methods=("ecc",))
-    assert written == [("running", 5, False), ("running", 10, False), ("complete", 12, True)]
+    assert written == [("incomplete", 0, False), ("incomplete", 5, False),
+                       ("incomplete", 10, False), ("complete", 12, True)]
     assert metrics["run"]["frames_done"] == 12
 
 
