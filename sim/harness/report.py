@@ -352,9 +352,17 @@ def read_metrics(run: str | Path) -> dict:
     except (OSError, json.JSONDecodeError) as error:
         raise ValueError(f"cannot read run metrics {path}: {error}; expected a run folder "
                          f"holding {METRICS_JSON} (written by a run)") from error
-    if document.get("format") != METRICS_FORMAT:
-        raise ValueError(f"{path} is not a run's metrics file (format "
-                         f"{document.get('format')!r}, expected {METRICS_FORMAT!r})")
+    if not isinstance(document, dict) or document.get("format") != METRICS_FORMAT:
+        found = document.get("format") if isinstance(document, dict) else type(document).__name__
+        raise ValueError(f"{path} is not a run's metrics file (format {found!r}, expected "
+                         f"{METRICS_FORMAT!r})")
+    for key, kind in (("status", str), ("scenario", dict), ("run", dict), ("summary", dict)):
+        if not isinstance(document.get(key), kind):
+            raise ValueError(f"{path}: '{key}' is missing or not a {kind.__name__}; expected the "
+                             f"{METRICS_JSON} a run writes")
+    if not isinstance(document["summary"].get("run"), dict):
+        raise ValueError(f"{path}: 'summary.run' is missing or not a dict; expected the "
+                         f"{METRICS_JSON} a run writes")
     return document
 
 

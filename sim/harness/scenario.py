@@ -49,7 +49,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,7 +59,7 @@ import numpy as np
 from scenarios import SCENARIOS_DIR
 from sim.world.scenes import SCENES, SceneParameterError, scene_layout
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
-from sim.harness.validation import FileValueError, is_finite_number, is_int
+from sim.harness.validation import FileValueError, is_finite_number, is_int, read_toml
 from stabilizer.api import available_methods
 
 REFERENCE_POLICIES = ("cycle_start", "previous", "first")
@@ -206,11 +205,7 @@ def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) 
     """
     path = resolve_scenario_path(path)
     source = str(path)
-    try:
-        with open(path, "rb") as handle:
-            raw = tomllib.load(handle)
-    except tomllib.TOMLDecodeError as error:
-        raise ScenarioError(source, "(file)", f"not valid TOML ({error})", "TOML 1.0") from None
+    raw = read_toml(path, ScenarioError)
     for dotted, value in (overrides or {}).items():
         _set_dotted(raw, dotted, value, source)
     raw.setdefault("name", path.stem)

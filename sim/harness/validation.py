@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 import re
+import tomllib
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 #: A name usable as a file or folder name: letters, digits, '_', '-', '.'.
@@ -68,3 +70,14 @@ def distinct_list(value: Any, key: str, fail: Fail, check: Callable[[Any], bool]
         if item in value[:index]:
             raise fail(f"{key}[{index}]", f"{item!r} is listed twice")
     return tuple(value)
+
+
+def read_toml(path: Path, error: type[FileValueError] = FileValueError) -> dict:
+    """The tables of the TOML file ``path``; a file that is not UTF-8 TOML raises ``error``."""
+    try:
+        with open(path, "rb") as handle:
+            return tomllib.load(handle)
+    except tomllib.TOMLDecodeError as problem:
+        raise error(str(path), "(file)", f"not valid TOML ({problem})", "TOML 1.0") from None
+    except UnicodeDecodeError:
+        raise error(str(path), "(file)", "not UTF-8 text", "a TOML 1.0 file") from None

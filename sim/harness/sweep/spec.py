@@ -28,7 +28,6 @@ scenario rejects fails at once, not after hours of other runs.
 from __future__ import annotations
 
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,7 +37,7 @@ from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
 from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
 from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key,
-                                    is_finite_number, is_int, is_safe_name)
+                                    is_finite_number, is_int, is_safe_name, read_toml)
 from stabilizer.api import available_methods
 
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
@@ -104,13 +103,10 @@ def scenario_label(scenario: str) -> str:
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
     """Read and validate a sweep file; relative scenario paths are taken from its folder."""
     path = Path(path)
-    try:
-        with open(path, "rb") as handle:
-            raw = tomllib.load(handle)
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no sweep file {path}") from None
-    except tomllib.TOMLDecodeError as error:
-        raise SweepError(str(path), "(file)", f"not valid TOML ({error})", "TOML 1.0") from None
+    if not path.is_file():
+        raise FileNotFoundError(f"no sweep file {path}; accepted: a sweep TOML file (see "
+                                "scenarios/sweeps/)")
+    raw = read_toml(path, SweepError)
     raw.setdefault("name", safe_name(path.stem))
     return sweep_from_dict(raw, source=str(path), base_dir=path.parent)
 

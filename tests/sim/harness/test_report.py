@@ -170,6 +170,19 @@ def test_aggregate_rejects_folders_without_metrics(tmp_path):
     (tmp_path / "metrics.json").write_text('{"format": "other"}')
     with pytest.raises(ValueError, match="not a run's metrics"):
         read_metrics(tmp_path)
+    (tmp_path / "metrics.json").write_text("[]")
+    with pytest.raises(ValueError, match="not a run's metrics"):
+        read_metrics(tmp_path)
+
+
+@pytest.mark.parametrize("content, missing", [
+    ({}, "'status'"), ({"status": "complete", "scenario": {}, "run": {}}, "'summary'"),
+    ({"status": "complete", "scenario": {}, "run": {}, "summary": {}}, "'summary.run'"),
+])
+def test_a_metrics_file_with_the_right_tag_and_no_content_is_named(tmp_path, content, missing):
+    (tmp_path / "metrics.json").write_text(json.dumps({"format": "egostab-metrics/1", **content}))
+    with pytest.raises(ValueError, match=f"metrics.json: {missing} is missing"):
+        aggregate_runs([tmp_path])
 
 
 def test_bad_status_is_rejected(run, tmp_path):

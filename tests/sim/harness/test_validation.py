@@ -10,7 +10,7 @@ import pytest
 from sim.harness.scenario import ScenarioError
 from sim.harness.sweep import SweepError
 from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key,
-                                    is_finite_number, is_int, is_safe_name)
+                                    is_finite_number, is_int, is_safe_name, read_toml)
 
 
 def test_validation_helpers_accept_and_name_the_bad_item():
@@ -35,3 +35,13 @@ def test_every_file_error_names_the_file_key_problem_and_what_is_allowed(kind):
     assert str(error) == "a.toml: sensor.fps: got 0; allowed: 1 to 50 frames/s"
     copy = pickle.loads(pickle.dumps(error))  # process pools send errors back pickled
     assert type(copy) is kind and str(copy) == str(error)
+
+
+@pytest.mark.parametrize("content, problem", [(b'scene = "lab"\nduration_s = [\n',
+                                               "not valid TOML"),
+                                              (b"\xff\xfe", "not UTF-8 text")])
+def test_a_file_that_is_not_toml_is_named(tmp_path, content, problem):
+    path = tmp_path / "bad.toml"
+    path.write_bytes(content)
+    with pytest.raises(SweepError, match=rf"{path}: \(file\): {problem}"):
+        read_toml(path, SweepError)
