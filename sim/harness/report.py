@@ -392,15 +392,41 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
     return rows
 
 
-def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None = None) -> str:
+def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None = None,
+                   compact: bool = False) -> str:
     """One Markdown table over several runs: a row per run and method, Table I figures.
 
     A run that scored no frame (it fell at once) still gets a row, with its status. With
+    ``compact``, a row per run and a column per method instead, each cell the mean absolute
+    error of rotation (deg) / x (px) / y (px) and the failure rate (the README's layout). With
     ``out_path`` the table is also written there (atomically).
     """
     runs = [Path(run) for run in run_dirs]
     if not runs:
         raise ValueError("no runs to aggregate; give one or more run folders")
+    table = _compact_table(runs) if compact else _long_table(runs)
+    if out_path is not None:
+        write_text_atomic(out_path, table + "\n")
+    return table
+
+
+def _compact_table(runs: list[Path]) -> str:
+    cells: dict[str, dict[str, str]] = {}
+    methods: list[str] = []
+    for run in runs:
+        label = run.name if run.is_dir() else run.parent.name
+        cells[label] = {}
+        for score in score_rows(read_metrics(run)):
+            if score["method"] not in methods:
+                methods.append(score["method"])
+            cells[label][score["method"]] = (
+                " / ".join(format_number(score[MEAN_ERROR_COLUMNS[axis]]) for axis in AXES)
+                + f" ({format_number(100 * score['failure_rate'], 0)}%)")
+    return markdown_table(("run", *methods), ((label, *(row.get(m, "n/a") for m in methods))
+                                              for label, row in cells.items()))
+
+
+def _long_table(runs: list[Path]) -> str:
     rows = []
     for run in runs:
         document = read_metrics(run)
@@ -416,10 +442,7 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
                   format_number(score["ms_per_frame"]),
                   f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}")
                  for score in scores]
-    table = markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
-                             "Rotation mean / var (deg)", "X mean / var (px)",
-                             "Y mean / var (px)", "Failure rate", "ms/frame",
-                             "ITF comp / raw (dB)"), rows)
-    if out_path is not None:
-        write_text_atomic(out_path, table + "\n")
-    return table
+    return markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
+                           "Rotation mean / var (deg)", "X mean / var (px)",
+                           "Y mean / var (px)", "Failure rate", "ms/frame",
+                           "ITF comp / raw (dB)"), rows)

@@ -13,7 +13,8 @@ from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, read_metrics, score_rows,
                                 table_one, terminal_summary, write_run_outputs)
-from sim.harness.scoring import RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary, summarize
+from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
+                                summarize)
 from stabilizer.motion import Motion
 
 METHODS = ("t2fuzzy", "sift")
@@ -145,6 +146,18 @@ def test_aggregate_runs_makes_one_table(run, tmp_path):
     assert len(lines) == 2 + 4
     assert lines[2].startswith("| run_a | corridor walk | complete | t2fuzzy | 40 |")
     assert lines[4].startswith("| run_b | lab | interrupted | t2fuzzy | 10 |")
+
+
+def test_the_compact_table_has_a_column_per_method_and_the_readme_cell_layout(run, tmp_path):
+    run_dir, _, records, _ = run
+    table = aggregate_runs([run_dir], compact=True)
+    header, _, row = table.splitlines()
+    methods = [score["method"] for score in score_rows(read_metrics(run_dir))]
+    assert header == "| run | " + " | ".join(methods) + " |"
+    first = score_rows(read_metrics(run_dir))[0]
+    expected = (" / ".join(f"{first[MEAN_ERROR_COLUMNS[axis]]:.2f}" for axis in AXES)
+                + f" ({100 * first['failure_rate']:.0f}%)")
+    assert row.split(" | ")[1] == expected
 
 
 def test_score_rows_read_each_methods_figures_back_from_metrics(run, tmp_path):
