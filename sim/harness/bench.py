@@ -43,6 +43,7 @@ from scipy.spatial.transform import Rotation
 
 import stabilizer
 from sim.harness.ground_truth import GroundTruth, ground_truth
+from sim.harness.methods import method_factory
 from sim.harness.recording import RunRecorder
 from scenarios import DEFAULT_SCENARIO
 from sim.harness.scoring import RAW_STREAM, FrameRecord, ItfAccumulator, summarize
@@ -76,10 +77,12 @@ def _scenes(n_frames: int, n_scenes: int, seed: int) -> list[tuple[np.ndarray, l
 
 
 def time_method(method: str, scenes: list[tuple[np.ndarray, list]]) -> float:
-    """Median milliseconds of ``Stabilizer(reference, method).estimate(frame)`` over frames."""
+    """Median milliseconds of ``estimate(frame)`` over frames, the reference analysed once per
+    scene (``Stabilizer(reference, method)`` for a built-in; sim.harness.methods)."""
+    factory = method_factory(method)
     times = []
     for reference, frames in scenes:
-        tracker = stabilizer.Stabilizer(reference, method)
+        tracker = factory(reference)
         tracker.estimate(frames[0])  # warm up caches and lazy imports
         for frame in frames:
             start = time.perf_counter()

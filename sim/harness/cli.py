@@ -1,8 +1,9 @@
 """``egostab``: the harness's one console command.
 
 Subcommands: ``run`` a walking scenario, ``ideal`` (the paper's ideal experiment on one image),
-``aggregate`` several runs into one table, ``list`` the shipped scenarios, ``bench`` the speed
-figures, ``gate`` the CI regression gate, ``sweep`` many runs in parallel (locally or on Ray).
+``aggregate`` several runs into one table, ``list`` the shipped scenarios, ``methods`` the
+methods that can be scored (docs/plugins.md), ``bench`` the speed figures, ``gate`` the CI
+regression gate, ``sweep`` many runs in parallel (locally or on Ray).
 Each has ``--help``.
 """
 
@@ -19,14 +20,19 @@ DEFAULT_RESULTS = Path("results")
 
 
 def _methods(text: str) -> tuple[str, ...]:
-    from stabilizer import available_methods
+    """The methods of ``--methods``, each resolved now so a bad one is refused up front."""
+    from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
 
     methods = tuple(name.strip() for name in text.split(",") if name.strip())
-    unknown = [name for name in methods if name not in available_methods()]
-    if unknown or not methods:
+    if not methods:
         raise argparse.ArgumentTypeError(
-            f"unknown method(s) {', '.join(unknown) or '(none given)'}; accepted: "
-            f"{', '.join(available_methods())} (comma separated), or 'all'")
+            f"no method given; accepted: {ACCEPTED_FORMS}; several comma separated, or 'all'")
+    for name in methods:
+        try:
+            method_factory(name)
+        except MethodError as error:
+            raise argparse.ArgumentTypeError(f"{error}; several comma separated, or 'all'") \
+                from None
     repeated = sorted({name for name in methods if methods.count(name) > 1})
     if repeated:
         raise argparse.ArgumentTypeError(
@@ -77,7 +83,7 @@ def _cmd_aggregate(args: argparse.Namespace) -> int:
 
     if args.out is not None:
         prepare_output_dir(args.out.parent or Path("."), option="--out's folder")
-    table = aggregate_runs(args.runs, out_path=args.out)
+    table = aggregate_runs(args.runs, out_path=args.out, compact=args.compact)
     print(table)
     return 0
 
@@ -89,6 +95,19 @@ def _cmd_list(args: argparse.Namespace) -> int:
         scenario = load_scenario(path)
         print(f"{path.stem:24s} {scenario.scene:10s} {scenario.duration_s:6.1f} s  "
               f"{scenario.description}")
+    return 0
+
+
+def _cmd_methods(args: argparse.Namespace) -> int:
+    from sim.harness.methods import list_methods
+
+    found = list_methods()
+    width = max(len(info.name) for info in found)
+    for info in found:
+        print(f"{info.name:{width}s}  {info.origin}")
+    print("Import paths are accepted too: package.module:Name, a class Name(reference, "
+          "**params) with .estimate(current) -> Motion, or a function (reference, current) -> "
+          "Motion or (angle_deg, dx, dy) (docs/plugins.md).")
     return 0
 
 
@@ -144,7 +163,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"scenario name (see `egostab list`) or TOML path "
                           f"(default: {DEFAULT_SCENARIO})")
     run.add_argument("--methods", type=_method_list, default=None,
-                     help="comma-separated methods, or 'all' (default: the scenario's)")
+                     help="comma-separated methods (built-in, entry point or "
+                          "package.module:Name; see `egostab methods`), or 'all' for the "
+                          "built-in ones (default: the scenario's)")
     run.add_argument("--out", type=Path, default=None,
                      help="run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
@@ -162,7 +183,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "or a frames.csv of a walking run (its ground truth is replayed)")
     ideal.add_argument("--frames", type=int, default=30, help="frames per cycle (default 30)")
     ideal.add_argument("--methods", type=_method_list, default=None,
-                       help="comma-separated methods, or 'all' (default: all)")
+                       help="comma-separated methods (built-in, entry point or "
+                            "package.module:Name; see `egostab methods`), or 'all' (default: "
+                            "all the built-in ones)")
     ideal.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "ideal" / "custom",
                        help="output folder (default: results/ideal/custom)")
     ideal.add_argument("--resize", action="store_true",
@@ -173,10 +196,17 @@ def build_parser() -> argparse.ArgumentParser:
     aggregate = commands.add_parser("aggregate", help="one table from several run folders")
     aggregate.add_argument("runs", nargs="+", type=Path, help="run folders with metrics.json")
     aggregate.add_argument("--out", type=Path, default=None, help="also write the table here")
+    aggregate.add_argument("--compact", action="store_true",
+                           help="a row per run and a column per method: mean |error| of "
+                                "rotation / x / y and the failure rate")
     aggregate.set_defaults(handler=_cmd_aggregate)
 
     listing = commands.add_parser("list", help="list the shipped scenarios")
     listing.set_defaults(handler=_cmd_list)
+
+    methods = commands.add_parser(
+        "methods", help="list the methods --methods accepts and where each comes from")
+    methods.set_defaults(handler=_cmd_methods)
 
     bench = commands.add_parser("bench", help="print the speed figures, measured side by side")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")

@@ -28,7 +28,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from stabilizer import Stabilizer, apply_motion, available_methods, depth_to_disparity
+from sim.harness.methods import method_factory
+from stabilizer import apply_motion, available_methods, depth_to_disparity
 from stabilizer.motion import Motion
 
 #: Name of the default trajectory.
@@ -163,7 +164,7 @@ def run_ideal(config: IdealConfig) -> dict:
     methods = tuple(config.methods or available_methods())
     reference = load_image(config.image, config.scene_seed, config.resize)
     motions = load_trajectory(config.trajectory, config.n_frames)
-    stabilizers = {method: Stabilizer(reference, method) for method in methods}
+    stabilizers = {method: method_factory(method)(reference) for method in methods}
     n_valid = int(np.count_nonzero(reference))
     records = []
     itf = ItfAccumulator()

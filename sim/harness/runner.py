@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
-from stabilizer import Stabilizer, compensate
+from sim.harness.methods import Estimator, method_factory
+from stabilizer import compensate
 from stabilizer.motion import Motion
 
 #: Statuses a run can end with (metrics.json "status").
@@ -68,18 +69,20 @@ def scenario_name(scenario: str | os.PathLike) -> str:
 
 
 class _ReferenceTracker:
-    """Holds the current reference frame and its analysed Stabilizers, per the policy.
+    """Holds the current reference frame and its analysed estimators, per the policy.
 
     Policies (docs/design.md): ``cycle_start`` = the first frame of each gait cycle; ``previous``
-    = the frame before; ``first`` = the run's first frame.
+    = the frame before; ``first`` = the run's first frame. The methods are resolved once, here
+    (sim.harness.methods: built-in, entry point or import path).
     """
 
     def __init__(self, policy: str, methods: tuple[str, ...]):
         self.policy = policy
         self.methods = methods
+        self.factories = {method: method_factory(method) for method in methods}
         self.frame = None
         self.cycle = None
-        self.stabilizers: dict[str, Stabilizer] = {}
+        self.stabilizers: dict[str, Estimator] = {}
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
 
     def _needs_new(self, cycle: int) -> bool:
@@ -95,7 +98,7 @@ class _ReferenceTracker:
             self.stabilizers = {}
             for method in self.methods:
                 start = time.perf_counter()
-                self.stabilizers[method] = Stabilizer(reference.disparity8, method)
+                self.stabilizers[method] = self.factories[method](reference.disparity8)
                 self.analysis_ms[method].append(1e3 * (time.perf_counter() - start))
         return self.frame
 
@@ -151,7 +154,7 @@ def walk_until(scenario, robot, time_s: float) -> None:
         robot.step()
 
 
-def timed_estimate(stabilizer: Stabilizer, current) -> tuple[Motion, float]:
+def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     """The estimate of ``current`` and the milliseconds it took; an exception becomes a status."""
     start = time.perf_counter()
     try:

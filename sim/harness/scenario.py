@@ -34,7 +34,8 @@ the dataclasses below, one per TOML table. Example::
 
     [evaluation]
     reference = "cycle_start"             # "cycle_start", "previous" or "first"
-    methods = ["t2fuzzy", "sift"]         # from stabilizer.available_methods()
+    methods = ["t2fuzzy", "sift"]         # stabilizer.available_methods(), entry points or
+                                          # package.module:Name (docs/plugins.md)
 
     [recording]
     enabled = true
@@ -59,6 +60,7 @@ import numpy as np
 from scenarios import SCENARIOS_DIR
 from sim.world.scenes import SCENES, SceneParameterError, scene_layout
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
+from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
 from sim.harness.validation import FileValueError, is_finite_number, is_int, read_toml
 from stabilizer.api import available_methods
 
@@ -132,10 +134,8 @@ class EvaluationSpec:
 
     reference: str = _key("cycle_start", f"one of {', '.join(REFERENCE_POLICIES)}",
                           lambda v: v in REFERENCE_POLICIES)
-    methods: tuple = _key(available_methods, f"a non-empty list of distinct names from "
-                          f"{', '.join(available_methods())}",
-                          lambda v: v and len(set(v)) == len(v)
-                          and all(m in available_methods() for m in v))
+    methods: tuple = _key(available_methods, f"a non-empty list of distinct methods, each "
+                          f"{ACCEPTED_FORMS}", lambda v: v and len(set(v)) == len(v))
 
 
 @dataclass(frozen=True)
@@ -230,6 +230,7 @@ def scenario_from_dict(raw: Mapping[str, Any], source: str = "<dict>") -> Scenar
     scenario = Scenario(**values, source=source)
     _check_gait(scenario, source)
     _check_sensor(scenario, source)
+    _check_methods(scenario, source)
     return scenario
 
 
@@ -338,6 +339,16 @@ def _check_sensor(scenario: Scenario, source: str) -> None:
         raise ScenarioError(source, "sensor.fps", f"{sensor.fps} frames/s leaves less than the "
                             f"integration time {params.integration_time_s} s per frame",
                             f"fps < {1.0 / params.integration_time_s:.1f}")
+
+
+def _check_methods(scenario: Scenario, source: str) -> None:
+    """Every method resolves now (built-in, entry point or import path), before any run."""
+    for name in scenario.evaluation.methods:
+        try:
+            method_factory(name)
+        except MethodError as error:
+            raise ScenarioError(source, "evaluation.methods", f"method {name!r}: "
+                                f"{error.problem}", ACCEPTED_FORMS) from None
 
 
 def _replace_checked(cls, base, overrides: Mapping, key: str, source: str):

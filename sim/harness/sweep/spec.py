@@ -12,7 +12,8 @@ simulated frames, so methods are not a run dimension). Example
     seeds = [0, 1]                            # integers >= 0, distinct
     noise_levels = [0.5, 1.0, 2.0, 4.0]       # numbers, distinct; each is written to noise_key
     noise_key = "sensor.noise_scale"          # default; any dotted scenario key
-    methods = ["t2fuzzy", "sift"]             # default: each scenario's own list
+    methods = ["t2fuzzy", "sift"]             # default: each scenario's own list; built-in
+                                              # names, entry points or package.module:Name
     max_frames = 90                           # default: the scenario's whole duration
     record = false                            # rerun recordings; default false
 
@@ -33,12 +34,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
 from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
 from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key,
                                     is_finite_number, is_int, is_safe_name, read_toml)
-from stabilizer.api import available_methods
 
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
 #: Keys of a sweep file -> what is allowed (the module docstring shows them in use).
@@ -49,7 +50,7 @@ ALLOWED = {
     "seeds": "a non-empty list of distinct integers >= 0",
     "noise_levels": "a non-empty list of distinct finite numbers",
     "noise_key": "a dotted scenario key such as sensor.noise_scale",
-    "methods": f"a non-empty list of distinct names from {', '.join(available_methods())}",
+    "methods": f"a non-empty list of distinct methods, each {ACCEPTED_FORMS}",
     "max_frames": "an integer >= 1",
     "record": "true or false",
     "overrides": "a table of dotted scenario keys -> single values (not seed, not the noise "
@@ -147,8 +148,8 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
         raw["noise_levels"], "noise_levels", fail, is_finite_number))
     methods = raw.get("methods")
     if methods is not None:
-        methods = distinct_list(methods, "methods", fail,
-                                lambda v: isinstance(v, str) and v in available_methods())
+        methods = distinct_list(methods, "methods", fail, lambda v: isinstance(v, str))
+        _check_methods(methods, fail)
 
     resolved = tuple(_resolve_scenario(entry, index, Path(base_dir), fail)
                      for index, entry in enumerate(scenarios))
@@ -158,6 +159,15 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
                      source=source)
     _check_runs_load(spec)
     return spec
+
+
+def _check_methods(methods: tuple[str, ...], fail: Fail) -> None:
+    """Every method resolves now (built-in, entry point or import path), before any run."""
+    for index, name in enumerate(methods):
+        try:
+            method_factory(name)
+        except MethodError as error:
+            raise fail(f"methods[{index}]", f"method {name!r}: {error.problem}") from None
 
 
 def _checked_overrides(overrides: Any, noise_key: str, fail: Fail) -> dict:

@@ -1,0 +1,221 @@
+"""The methods the harness scores: built-in stabilizers, entry points and import paths.
+
+A method name is one of three forms (docs/plugins.md):
+
+- a built-in name of ``stabilizer.available_methods()``, built as
+  ``stabilizer.Stabilizer(reference, name)``;
+- ``package.module:Name``, an import path to a class built as ``Name(reference, **params)``
+  with ``.estimate(current) -> Motion``, or to a function ``(reference, current) -> Motion``
+  or ``-> (angle_deg, dx, dy)``;
+- the name of an entry point of the group ``egostab.stabilizers`` that an installed
+  distribution declares; it loads one of the objects above.
+
+A built-in name wins over an entry point of the same name. Outputs name a method by the string
+given. A plugin method is held to the Motion contract frame by frame (:class:`PluginStabilizer`):
+what it raises, a non-finite estimate or a result of the wrong type is a failed frame whose
+status says why; the run goes on.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import importlib.metadata
+import inspect
+import math
+import numbers
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from stabilizer import Stabilizer, available_methods
+from stabilizer.inputs import as_disparity, check_same_shape
+from stabilizer.motion import Motion
+
+#: Entry-point group under which installed distributions register methods.
+ENTRY_POINT_GROUP = "egostab.stabilizers"
+#: ``package.module:Name`` (the attribute may be dotted, as in ``module:Class.factory``).
+IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
+#: The accepted forms, for messages.
+ACCEPTED_FORMS = (f"a built-in method ({', '.join(available_methods())}), an entry point of "
+                  f"group {ENTRY_POINT_GROUP} (egostab methods lists them), or an import path "
+                  "package.module:Name (a class Name(reference, **params) with "
+                  ".estimate(current), or a function (reference, current))")
+
+
+class Estimator(Protocol):
+    """What the harness calls: the motion of a current frame against the analysed reference."""
+
+    def estimate(self, current: np.ndarray) -> Motion: ...
+
+
+class MethodError(ValueError):
+    """A method name that cannot be resolved: one line naming it and the accepted forms."""
+
+    def __init__(self, name: str, problem: str):
+        self.name, self.problem = name, problem
+        super().__init__(f"method {name!r}: {problem}; accepted: {ACCEPTED_FORMS}")
+
+    def __reduce__(self):  # picklable, so a process pool can report it
+        return type(self), (self.name, self.problem)
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """An available method and where it comes from (``egostab methods``)."""
+
+    name: str
+    origin: str
+
+
+def list_methods() -> list[MethodInfo]:
+    """The built-in methods, then the installed entry points, in the order found.
+
+    Entry points are listed without being loaded; one that a built-in name shadows, or an
+    earlier entry point of the same name, says so.
+    """
+    found = [MethodInfo(name, "built-in") for name in available_methods()]
+    seen = set(available_methods())
+    for entry_point in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        origin = f"entry point {entry_point.name} -> {entry_point.value}" \
+                 f"{_distribution_text(entry_point)}"
+        if entry_point.name in seen:
+            origin += " (shadowed: an earlier method has this name)"
+        seen.add(entry_point.name)
+        found.append(MethodInfo(entry_point.name, origin))
+    return found
+
+
+def method_factory(name: str) -> Callable[..., Estimator]:
+    """``factory(reference, **params)``: the estimator of method ``name`` for one reference.
+
+    A built-in name gives ``functools.partial(Stabilizer, method=name)``; any other name is
+    loaded now (entry point or import path) and wrapped in :class:`PluginStabilizer`.
+
+    Raises:
+        MethodError: ``name`` is not a built-in, an installed entry point or an importable
+            class or function.
+    """
+    if name in available_methods():
+        return functools.partial(Stabilizer, method=name)
+    target = _load(name)
+    if inspect.isclass(target):
+        if not callable(getattr(target, "estimate", None)):
+            raise MethodError(name, f"class {target.__qualname__} has no estimate(current) "
+                                    "method")
+    elif not callable(target):
+        raise MethodError(name, f"{type(target).__name__} object is not callable")
+    return functools.partial(PluginStabilizer, name, target)
+
+
+def _load(name: str) -> Any:
+    """The object a non-built-in name refers to: an import path's, or an entry point's."""
+    if ":" in name:
+        if not IMPORT_PATH.match(name):
+            raise MethodError(name, "not an import path of the form package.module:Name")
+        module_name, attribute = name.split(":")
+        try:
+            target = importlib.import_module(module_name)
+        except Exception as error:  # a plugin's own import error is the user's to read
+            raise MethodError(name, f"cannot import module {module_name} "
+                                    f"({_one_line(error)})") from None
+        for part in attribute.split("."):
+            if not hasattr(target, part):
+                raise MethodError(name, f"{getattr(target, '__name__', module_name)} has no "
+                                        f"attribute {part}")
+            target = getattr(target, part)
+        return target
+    entry_points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP, name=name)
+    if not entry_points:
+        raise MethodError(name, "unknown: not a built-in method, not an installed entry point "
+                                "and not an import path")
+    entry_point = next(iter(entry_points))
+    try:
+        return entry_point.load()
+    except Exception as error:
+        raise MethodError(name, f"entry point {entry_point.value}"
+                                f"{_distribution_text(entry_point)} cannot be loaded "
+                                f"({_one_line(error)})") from None
+
+
+def _distribution_text(entry_point: importlib.metadata.EntryPoint) -> str:
+    dist = entry_point.dist
+    return "" if dist is None else f" from distribution {dist.name} {dist.version}"
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
+
+
+class PluginStabilizer:
+    """A method from outside ``stabilizer`` behind the ``Stabilizer`` interface.
+
+    The reference and every current frame reach the method as ``Stabilizer`` passes them
+    (uint8 disparity-like images of one shape, 0 = invalid), read-only, so a method cannot
+    alter the frames the other methods see. Its result becomes a :class:`Motion`
+    (:func:`as_motion`). If building the estimator raises, every frame against this reference
+    fails with ``"exception:<type>"``; what ``estimate`` raises is left to the caller (the
+    harness's ``timed_estimate`` records it the same way as for a built-in method).
+
+    Args:
+        method: the name the method was given by (kept as ``self.method``).
+        target: a class ``target(reference, **params)`` with ``.estimate(current)``, or a
+            function ``target(reference, current, **params)``.
+        reference: the reference frame (uint8 disparity-like or float depth in metres).
+        **params: the method's own keyword parameters.
+    """
+
+    def __init__(self, method: str, target: Any, reference: np.ndarray, **params: Any):
+        self.method = method
+        self.reference = _read_only(as_disparity(reference, "reference"))
+        self._failure: Motion | None = None
+        if inspect.isclass(target):
+            try:
+                self._estimate = target(self.reference, **params).estimate
+            except Exception as error:  # a plugin's bug fails its frames, not the run
+                self._failure = Motion.failed(f"exception:{type(error).__name__}",
+                                              message=str(error), stage="reference")
+        else:
+            self._estimate = functools.partial(target, self.reference, **params)
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        if self._failure is not None:
+            return self._failure
+        current = _read_only(as_disparity(current, "current"))
+        check_same_shape(self.reference, current)
+        return as_motion(self._estimate(current))
+
+
+def _read_only(image: np.ndarray) -> np.ndarray:
+    view = image.view()
+    view.flags.writeable = False
+    return view
+
+
+def as_motion(result: Any) -> Motion:
+    """A plugin's result as a Motion: a Motion, or three real numbers (angle_deg, dx, dy).
+
+    A failed Motion is kept as it is. Anything else is a failed Motion whose status says why:
+    ``"nan"`` for an estimate that is not finite (NaN or infinite), ``"wrong_type:<type>"``
+    for a result, or a value inside it, that is not of the accepted types.
+    """
+    if isinstance(result, Motion):
+        if not result.ok:
+            return result
+        values, diagnostics = result.as_tuple(), result.diagnostics
+    elif isinstance(result, (tuple, list, np.ndarray)) and len(result) == 3:
+        values, diagnostics = tuple(result), {}
+    else:
+        return Motion.failed(f"wrong_type:{type(result).__name__}",
+                             message="expected a Motion or (angle_deg, dx, dy)")
+    for value in values:
+        if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+            return Motion.failed(f"wrong_type:{type(value).__name__}",
+                                 message="angle_deg, dx and dy must be real numbers")
+    if not all(math.isfinite(value) for value in values):
+        return Motion.failed("nan", values=[float(value) for value in values])
+    return Motion(*(float(value) for value in values), diagnostics=diagnostics)

@@ -1,0 +1,92 @@
+"""Methods from outside ``stabilizer``, one of each form the plugin contract accepts and of each
+way a method can go wrong; tests refer to them by import path
+(``tests.sim.harness.plugin_methods:Name``, docs/plugins.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from stabilizer.motion import Motion
+
+#: What every well-behaved method here returns, whatever the frames.
+FIXED = (1.5, -2.0, 3.25)
+
+
+class FixedEstimator:
+    """A class ``FixedEstimator(reference, **params)``: the reference is kept, ``offset_px``
+    is added to dx."""
+
+    def __init__(self, reference: np.ndarray, offset_px: float = 0.0):
+        self.shape = reference.shape
+        self.offset_px = offset_px
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        angle, dx, dy = FIXED
+        return Motion(angle, dx + self.offset_px, dy, diagnostics={"shape": self.shape})
+
+
+def fixed_motion(reference: np.ndarray, current: np.ndarray) -> Motion:
+    return Motion(*FIXED)
+
+
+def fixed_tuple(reference: np.ndarray, current: np.ndarray) -> tuple[float, float, float]:
+    return FIXED
+
+
+def fixed_array(reference: np.ndarray, current: np.ndarray) -> np.ndarray:
+    return np.array(FIXED, np.float32)
+
+
+def reported_failure(reference: np.ndarray, current: np.ndarray) -> Motion:
+    return Motion.failed("no_structure")
+
+
+def raising(reference: np.ndarray, current: np.ndarray) -> Motion:
+    raise ValueError("this method always fails")
+
+
+def nan_motion(reference: np.ndarray, current: np.ndarray) -> Motion:
+    return Motion(math.nan, 0.0, 0.0)
+
+
+def infinite_tuple(reference: np.ndarray, current: np.ndarray) -> tuple[float, float, float]:
+    return (0.0, math.inf, 0.0)
+
+
+def wrong_type(reference: np.ndarray, current: np.ndarray) -> str:
+    return "1.5, -2.0, 3.25"
+
+
+def wrong_length(reference: np.ndarray, current: np.ndarray) -> tuple[float, float]:
+    return (1.0, 2.0)
+
+
+def wrong_value_type(reference: np.ndarray, current: np.ndarray) -> tuple:
+    return (1.0, "2.0", 3.0)
+
+
+def writes_its_input(reference: np.ndarray, current: np.ndarray) -> Motion:
+    current[0, 0] = 7
+    return Motion(*FIXED)
+
+
+class FailsOnReference:
+    """Its constructor raises: every frame against that reference fails."""
+
+    def __init__(self, reference: np.ndarray):
+        raise RuntimeError("cannot analyse this reference")
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        return Motion(*FIXED)
+
+
+class NoEstimate:
+    """A class without ``estimate``: refused."""
+
+    def __init__(self, reference: np.ndarray):
+        pass
+
+
+NOT_CALLABLE = 3.0

@@ -1,0 +1,192 @@
+"""Methods by import path and entry point: resolution, the Motion contract, refusals, use."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sim.harness.cli import build_parser, main
+from sim.harness.methods import (ENTRY_POINT_GROUP, MethodError, PluginStabilizer, as_motion,
+                                 list_methods, method_factory)
+from sim.harness.runner import timed_estimate
+from sim.harness.scenario import ScenarioError, load_scenario
+from sim.harness.sweep import sweep_from_dict
+from sim.harness.sweep.spec import SweepError
+from stabilizer import Stabilizer, apply_motion, available_methods, depth_to_disparity
+from stabilizer.motion import Motion
+from stabilizer.testing import make_depth_scene
+from tests.sim.harness.plugin_methods import FIXED
+
+HELPERS = "tests.sim.harness.plugin_methods"
+
+
+@pytest.fixture(scope="module")
+def frames():
+    reference = depth_to_disparity(make_depth_scene(3))
+    return reference, apply_motion(reference, Motion(2.0, 3.0, -1.0))
+
+
+def scored(name, frames, **params):
+    """The Motion that the harness records for method ``name`` on the pair ``frames``."""
+    reference, current = frames
+    motion, ms = timed_estimate(method_factory(name)(reference, **params), current)
+    assert ms >= 0
+    return motion
+
+
+@pytest.mark.parametrize("name", ["FixedEstimator", "fixed_motion", "fixed_tuple",
+                                  "fixed_array"])
+def test_a_class_or_a_function_by_import_path_gives_its_estimate(frames, name):
+    motion = scored(f"{HELPERS}:{name}", frames)
+    assert motion.ok and motion.as_tuple() == FIXED
+    assert all(type(value) is float for value in motion.as_tuple())
+
+
+def test_a_class_gets_the_reference_and_its_params(frames):
+    motion = scored(f"{HELPERS}:FixedEstimator", frames, offset_px=1.0)
+    assert motion.dx == FIXED[1] + 1.0
+    assert motion.diagnostics == {"shape": frames[0].shape}
+
+
+@pytest.mark.parametrize("name, status", [
+    ("raising", "exception:ValueError"),
+    ("nan_motion", "nan"),
+    ("infinite_tuple", "nan"),
+    ("wrong_type", "wrong_type:str"),
+    ("wrong_length", "wrong_type:tuple"),
+    ("wrong_value_type", "wrong_type:str"),
+    ("writes_its_input", "exception:ValueError"),
+    ("FailsOnReference", "exception:RuntimeError"),
+    ("reported_failure", "no_structure"),
+])
+def test_a_misbehaving_method_fails_the_frame_with_the_reason(frames, name, status):
+    motion = scored(f"{HELPERS}:{name}", frames)
+    assert motion.status == status
+    assert all(math.isnan(value) for value in motion.as_tuple())
+
+
+def test_a_method_cannot_change_the_frames_the_others_see(frames):
+    reference, current = frames
+    before = current.copy()
+    scored(f"{HELPERS}:writes_its_input", frames)
+    assert np.array_equal(current, before)
+
+
+def test_as_motion_keeps_a_good_motion_and_its_diagnostics():
+    motion = as_motion(Motion(1.0, 2.0, 3.0, diagnostics={"n": 4}))
+    assert motion == Motion(1.0, 2.0, 3.0) and motion.diagnostics == {"n": 4}
+    assert as_motion([1, 2, 3]) == Motion(1.0, 2.0, 3.0)
+    assert as_motion(None).status == "wrong_type:NoneType"
+    assert as_motion((True, 0.0, 0.0)).status == "wrong_type:bool"
+
+
+@pytest.mark.parametrize("name", available_methods())
+def test_a_built_in_name_is_built_by_stabilizer_as_before(frames, name):
+    reference, current = frames
+    built = method_factory(name)(reference)
+    assert type(built) is Stabilizer and built.method == name
+    assert built.estimate(current) == Stabilizer(reference, name).estimate(current)
+
+
+@pytest.mark.parametrize("name, problem", [
+    ("no_such_method", "not a built-in method, not an installed entry point"),
+    ("no_such_package.module:Name", "cannot import module no_such_package.module"),
+    (f"{HELPERS}:Missing", "has no attribute Missing"),
+    (f"{HELPERS}:NOT_CALLABLE", "float object is not callable"),
+    (f"{HELPERS}:NoEstimate", "has no estimate(current) method"),
+    ("a:b:c", "not an import path"),
+    ("module:", "not an import path"),
+])
+def test_a_name_that_cannot_be_resolved_is_refused_in_one_line(name, problem):
+    with pytest.raises(MethodError) as error:
+        method_factory(name)
+    message = str(error.value)
+    assert "\n" not in message
+    assert f"method {name!r}" in message and problem in message
+    assert "accepted:" in message and "package.module:Name" in message
+    assert ENTRY_POINT_GROUP in message and "fourier_mellin" in message
+
+
+def test_the_command_line_refuses_it_with_status_2(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(["run", "--methods", f"ecc,{HELPERS}:Missing"])
+    assert exit_info.value.code == 2
+    error_line = capsys.readouterr().err.strip().splitlines()[-1]  # after argparse's usage
+    assert error_line.startswith("egostab run: error: argument --methods: method ")
+    assert f"{HELPERS}:Missing" in error_line and "package.module:Name" in error_line
+
+
+@pytest.fixture
+def installed_entry_points(tmp_path, monkeypatch):
+    """A distribution 'fake-methods 0.3' on sys.path declaring two entry points."""
+    dist_info = tmp_path / "fake_methods-0.3.dist-info"
+    dist_info.mkdir()
+    (dist_info / "METADATA").write_text("Metadata-Version: 2.1\nName: fake-methods\n"
+                                        "Version: 0.3\n")
+    (dist_info / "entry_points.txt").write_text(
+        f"[{ENTRY_POINT_GROUP}]\nfixed = {HELPERS}:FixedEstimator\n"
+        "broken = no_such_package:Estimator\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+
+def test_an_entry_point_is_a_method_by_its_name(installed_entry_points, frames):
+    assert scored("fixed", frames).as_tuple() == FIXED
+    with pytest.raises(MethodError, match="fake-methods 0.3 cannot be loaded"):
+        method_factory("broken")
+
+
+def test_egostab_methods_lists_every_method_and_where_it_comes_from(installed_entry_points,
+                                                                     capsys):
+    origins = {info.name: info.origin for info in list_methods()}
+    assert all(origins[name] == "built-in" for name in available_methods())
+    assert origins["fixed"] == (f"entry point fixed -> {HELPERS}:FixedEstimator from "
+                                "distribution fake-methods 0.3")
+    assert main(["methods"]) == 0
+    out = capsys.readouterr().out
+    assert "fixed" in out and "fake-methods 0.3" in out and "t2fuzzy_paper" in out
+    assert "Import paths are accepted too" in out
+
+
+def test_a_scenario_file_takes_import_paths_and_refuses_bad_names(tmp_path):
+    good = tmp_path / "good.toml"
+    good.write_text(f'[evaluation]\nmethods = ["ecc", "{HELPERS}:fixed_tuple"]\n')
+    assert load_scenario(good).evaluation.methods == ("ecc", f"{HELPERS}:fixed_tuple")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(f'[evaluation]\nmethods = ["ecc", "{HELPERS}:Missing"]\n')
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(bad)
+    assert error.value.key == "evaluation.methods"
+    assert str(bad) in str(error.value) and "has no attribute Missing" in str(error.value)
+
+
+def test_a_sweep_file_takes_import_paths_and_refuses_bad_names(tmp_path):
+    raw = {"scenarios": ["corridor_straight"], "seeds": [0], "noise_levels": [1.0],
+           "methods": ["ecc", f"{HELPERS}:fixed_tuple"]}
+    assert sweep_from_dict(raw).methods == ("ecc", f"{HELPERS}:fixed_tuple")
+    with pytest.raises(SweepError) as error:
+        sweep_from_dict({**raw, "methods": ["ecc", "no_such_package:Name"]}, source="s.toml")
+    assert error.value.key == "methods[1]"
+    assert "s.toml" in str(error.value) and "cannot import module" in str(error.value)
+
+
+def test_the_ideal_experiment_names_a_plugin_by_the_string_given(tmp_path, frames):
+    image = tmp_path / "scene.npy"
+    np.save(image, make_depth_scene(3))
+    out_dir = tmp_path / "ideal"
+    name = f"{HELPERS}:fixed_tuple"
+    assert main(["ideal", str(image), "--methods", f"ecc,{name},{HELPERS}:raising",
+                 "--frames", "3", "--out", str(out_dir)]) == 0
+    with open(out_dir / "frames.csv", newline="") as handle:
+        rows = [row for row in csv.DictReader(handle)]
+    plugin = [row for row in rows if row["method"] == name]
+    assert len(plugin) == 3
+    assert all(float(row["est_dx_px"]) == FIXED[1] and row["status"] == "ok" for row in plugin)
+    assert {row["status"] for row in rows if row["method"] == f"{HELPERS}:raising"} == {
+        "exception:ValueError"}
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert name in metrics["run"]["methods"]
+    assert (out_dir / "estimates_tests.sim.harness.plugin_methods_fixed_tuple.png").is_file()
