@@ -7,3 +7,6 @@ SCENARIOS_DIR = Path(__file__).resolve().parent
 
 #: The scenario ``egostab run`` walks when none is named.
 DEFAULT_SCENARIO = "corridor_straight"
+
+#: Folder of the shipped suites (``egostab suite``; docs/suites.md).
+SUITES_DIR = SCENARIOS_DIR / "suites"

@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
@@ -24,6 +24,7 @@ from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
+T = TypeVar("T")
 #: Seconds an interrupted sweep waits for its cancelled Ray runs to write their files.
 RAY_CANCEL_WAIT_S = 60.0
 
@@ -36,6 +37,29 @@ def run_sweep(spec: SweepSpec, out_dir: str | os.PathLike, backend: str = "local
     Args:
         spec: from :func:`load_sweep`.
         out_dir: the sweep's folder (see the package docstring for its layout).
+        backend, workers, ray_address, run_fn, progress: as for :func:`execute_plan`.
+
+    Returns:
+        A :class:`SweepResult`; runs that raised are in ``result.failed``, not raised here.
+    """
+    out_dir = Path(out_dir)
+    return execute_plan(plan_sweep(spec, out_dir),
+                        lambda outcomes: write_sweep_outputs(out_dir, spec, outcomes),
+                        backend=backend, workers=workers, ray_address=ray_address,
+                        run_fn=run_fn, progress=progress, label="sweep runs")
+
+
+def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOutcome, ...]], T],
+                 *, backend: str = "local", workers: int | None = None,
+                 ray_address: str | None = None, run_fn: Callable[[RunConfig], dict] = run,
+                 progress: bool = False, label: str = "runs") -> T:
+    """Run the planned runs not yet done; then ``write_outputs`` of every outcome, in plan order.
+
+    The outputs are written also when the runs are interrupted, from the runs finished by then.
+
+    Args:
+        plan: the planned runs (anything with ``.name`` and ``.config``, see ``plan_sweep``).
+        write_outputs: writes the tables from the outcomes and returns the result.
         backend: ``"local"`` (a process pool on this machine, spawn start method) or ``"ray"``.
         workers: runs at a time; default: ``os.cpu_count()`` locally, the cluster's free CPUs
             on Ray.
@@ -43,39 +67,33 @@ def run_sweep(spec: SweepSpec, out_dir: str | os.PathLike, backend: str = "local
             ``"ray://head:10001"`` a remote one; None uses ``$RAY_ADDRESS`` if set, else starts
             a local instance. Ignored if Ray is already initialised in this process.
         run_fn: the run function, a picklable ``RunConfig -> metrics dict`` (tests pass a fake).
-        progress: show a progress bar of finished runs.
-
-    Returns:
-        A :class:`SweepResult`; runs that raised are in ``result.failed``, not raised here.
+        progress: show a progress bar of finished runs, labelled ``label``.
     """
     if backend not in BACKENDS:
-        raise ValueError(f"unknown sweep backend {backend!r}; accepted: {', '.join(BACKENDS)}")
+        raise ValueError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
     if workers is not None and (not is_int(workers) or workers < 1):
         raise ValueError(f"workers must be an integer >= 1 (or None for every core); "
                          f"got {workers!r}")
     if backend == "ray":
         _import_ray()  # fail before anything is written if the extra is missing
-    out_dir = Path(out_dir)
-    plan = plan_sweep(spec, out_dir)
     done, pending = split_done(plan)
     outcomes = {outcome.run.name: outcome for outcome in done}
     execute = _run_local if backend == "local" else _run_ray
     try:
         for outcome in _with_progress(execute(pending, run_fn, workers, ray_address),
-                                      len(pending), progress):
+                                      len(pending), progress, label):
             outcomes[outcome.run.name] = outcome
-    finally:  # also on Ctrl-C: the table shows what finished
-        ordered = tuple(outcomes[r.name] for r in plan if r.name in outcomes)
-        result = write_sweep_outputs(out_dir, spec, ordered)
+    finally:  # also on Ctrl-C: the tables show what finished
+        result = write_outputs(tuple(outcomes[r.name] for r in plan if r.name in outcomes))
     return result
 
 
-def _with_progress(outcomes: Iterator[RunOutcome], total: int, progress: bool):
+def _with_progress(outcomes: Iterator[RunOutcome], total: int, progress: bool, label: str):
     if not progress:
         return outcomes
     from tqdm import tqdm
 
-    return tqdm(outcomes, total=total, desc="sweep runs", unit="run")
+    return tqdm(outcomes, total=total, desc=label, unit="run")
 
 
 def _describe(error: BaseException) -> str:

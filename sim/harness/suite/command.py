@@ -1,0 +1,50 @@
+"""The ``egostab suite`` subcommand: its options and its handler (cli.py wires it in)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+#: Where suites write unless told otherwise: results/suites/<name>/.
+DEFAULT_RESULTS = Path("results")
+
+
+def add_suite_parser(commands) -> argparse.ArgumentParser:
+    """Add the ``suite`` subcommand to ``commands`` (an argparse subparsers object)."""
+    suite = commands.add_parser(
+        "suite", help="run a suite file: many sequences, means with 95%% bootstrap intervals")
+    suite.add_argument("suite_file", type=Path,
+                       help="a suite TOML file (see scenarios/suites/ and docs/suites.md)")
+    suite.add_argument("--out", type=Path, default=None,
+                       help="suite folder (default: results/suites/<name>; resumable: complete "
+                            "runs are skipped)")
+    suite.add_argument("--workers", type=int, default=None,
+                       help="runs at a time (default: every core)")
+    suite.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
+    suite.add_argument("--ray-address", default=None,
+                       help="Ray cluster address ('auto', 'ray://host:10001'; default: "
+                            "$RAY_ADDRESS or a local instance)")
+    suite.set_defaults(handler=run_suite_command)
+    return suite
+
+
+def run_suite_command(args: argparse.Namespace) -> int:
+    """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
+    from sim.harness.atomic import prepare_output_dir
+    from sim.harness.suite.run import default_suite_dir, run_suite
+    from sim.harness.suite.spec import load_suite
+
+    spec = load_suite(args.suite_file)
+    out_dir = prepare_output_dir(args.out or default_suite_dir(spec, DEFAULT_RESULTS))
+    try:
+        result = run_suite(spec, out_dir, backend="ray" if args.ray else "local",
+                           workers=args.workers, ray_address=args.ray_address, progress=True)
+    except ImportError as error:  # --ray without the cluster extra: the message says the fix
+        print(f"egostab suite: error: {error}", file=sys.stderr)
+        return 2
+    print(result.markdown)
+    for outcome in result.failed:
+        print(f"run failed: {outcome.run.name}: {outcome.error}", file=sys.stderr)
+    print(f"suite folder: {out_dir}")
+    return 1 if result.failed else 0

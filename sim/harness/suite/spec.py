@@ -1,0 +1,265 @@
+"""A suite file and its validation.
+
+A suite scores methods over many sequences: walks of scenario templates on procedural scenes
+(``scene_seed`` places the furniture), under a gait preset and a run seed. Each
+``[[sequences]]`` entry names one template and lists what to vary; its sequences are every
+combination of its gaits, scene seeds and seeds. Example (the shipped suite is
+``scenarios/suites/heldout.toml``)::
+
+    name = "heldout"                           # default: the file's stem
+    description = "scoring only: no method is tuned on these scene seeds"
+    methods = ["t2fuzzy", "sift"]              # built-in names, entry points or
+                                               # package.module:Name; every sequence scores all
+    max_frames = 360                           # default: each sequence's whole duration
+    record = false                             # rerun recordings; default false
+
+    [overrides]                                # optional: dotted scenario keys, every sequence
+    duration_s = 12.0
+
+    [[sequences]]
+    scenario = "corridor_straight"             # a shipped name, or a TOML path (relative
+                                               # paths: from the suite file's folder)
+    gaits = ["default", "paper_like"]          # values of gait.preset; default: the template's
+    scene_seeds = [1000, 1001]                 # integers >= 0, distinct
+    seeds = [0]                                # run seeds; default [0]
+    overrides = { duration_s = 20.0 }          # optional: over the suite's overrides
+
+The scene of a sequence is its template's (so the template's commands fit the scene's path).
+Unknown keys, wrong types, out-of-range values and a sequence listed twice raise
+:class:`SuiteError` (a ValueError) naming the file, the key and what is allowed. Every sequence
+is also loaded through ``sim.harness.scenario.load_scenario`` before anything runs.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
+from sim.harness.report import safe_name
+from sim.harness.runner import scenario_name
+from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
+from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key, is_int,
+                                    is_safe_name, read_toml)
+
+#: Scenario keys a suite sets from its lists; overrides may not set them.
+VARIED_KEYS = ("gait.preset", "scene_seed", "seed")
+#: Keys of a suite file -> what is allowed (the module docstring shows them in use).
+ALLOWED = {
+    "name": "a non-empty name of letters, digits, '_', '-', '.' (default: the file's stem)",
+    "description": "free text",
+    "methods": f"a non-empty list of distinct methods, each {ACCEPTED_FORMS}",
+    "max_frames": "an integer >= 1",
+    "record": "true or false",
+    "overrides": f"a table of dotted scenario keys -> single values (not "
+                 f"{', '.join(VARIED_KEYS)})",
+    "sequences": "a non-empty list of [[sequences]] tables",
+}
+#: Keys of one ``[[sequences]]`` table -> what is allowed.
+SEQUENCE_ALLOWED = {
+    "scenario": "a shipped scenario name or a TOML path",
+    "gaits": "a non-empty list of distinct gait presets (sim.world.walking.gait.GAIT_PRESETS)",
+    "scene_seeds": "a non-empty list of distinct integers >= 0",
+    "seeds": "a non-empty list of distinct integers >= 0",
+    "overrides": ALLOWED["overrides"],
+}
+_REQUIRED = ("methods", "sequences")
+_SEQUENCE_REQUIRED = ("scenario", "scene_seeds")
+
+
+class SuiteError(FileValueError):
+    """A suite file that cannot run: names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class SuiteSequence:
+    """One sequence of a suite: a template walked on one scene layout, gait and seed.
+
+    Attributes:
+        scenario: the template, a shipped name or an absolute TOML path.
+        scene: the template's scene.
+        gait: the gait preset (``gait.preset``).
+        scene_seed, seed: the scene layout and the run seed.
+        overrides: every scenario key the suite sets for this sequence (its overrides and the
+            varied keys).
+    """
+
+    scenario: str
+    scene: str
+    gait: str
+    scene_seed: int
+    seed: int
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The sequence's folder name: template, gait, scene seed and seed."""
+        return (f"{safe_name(scenario_name(self.scenario))}__{self.gait}__scene{self.scene_seed}"
+                f"__seed{self.seed}")
+
+
+@dataclass(frozen=True)
+class SuiteSpec:
+    """A validated suite (see the module docstring for the file layout).
+
+    Attributes:
+        name: the suite's name.
+        methods: the methods every sequence scores.
+        sequences: every sequence, in file order (entry, then gait, scene seed, seed).
+        max_frames: frames per sequence; None = each sequence's duration.
+        record: write rerun recordings.
+        description, source: free text; the file the spec came from.
+    """
+
+    name: str
+    methods: tuple[str, ...]
+    sequences: tuple[SuiteSequence, ...]
+    max_frames: int | None = None
+    record: bool = False
+    description: str = ""
+    source: str = "<dict>"
+
+
+def load_suite(path: str | os.PathLike) -> SuiteSpec:
+    """Read and validate a suite file; relative scenario paths are taken from its folder."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no suite file {path}; accepted: a suite TOML file (see "
+                                "scenarios/suites/)")
+    raw = read_toml(path, SuiteError)
+    raw.setdefault("name", safe_name(path.stem))
+    return suite_from_dict(raw, source=str(path), base_dir=path.parent)
+
+
+def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
+                    base_dir: str | os.PathLike = ".") -> SuiteSpec:
+    """Validate a suite given as a (TOML-like) dict; ``source`` names it in errors."""
+    def fail(key: str, problem: str) -> SuiteError:
+        return SuiteError(source, key, problem, ALLOWED[key.split("[")[0]])
+
+    for key in raw:
+        if key not in ALLOWED:
+            raise SuiteError(source, str(key), "unknown key", f"keys {', '.join(ALLOWED)}")
+    for key in _REQUIRED:
+        if key not in raw:
+            raise fail(key, "missing")
+    name = raw.get("name", "suite")
+    if not is_safe_name(name):
+        raise fail("name", f"got {name!r}")
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        raise fail("description", f"got {description!r}")
+    max_frames = raw.get("max_frames")
+    if max_frames is not None and not (is_int(max_frames) and max_frames >= 1):
+        raise fail("max_frames", f"got {max_frames!r}")
+    record = raw.get("record", False)
+    if not isinstance(record, bool):
+        raise fail("record", f"got {record!r}")
+    methods = distinct_list(raw["methods"], "methods", fail, lambda v: isinstance(v, str))
+    _check_methods(methods, fail)
+    overrides = _checked_overrides(raw.get("overrides", {}), "overrides", fail)
+
+    entries = raw["sequences"]
+    if not isinstance(entries, list) or not entries:
+        raise fail("sequences", f"got {entries!r}")
+    sequences: list[SuiteSequence] = []
+    for index, entry in enumerate(entries):
+        for sequence in _entry_sequences(entry, f"sequences[{index}]", overrides,
+                                         Path(base_dir), source):
+            if any(sequence.name == s.name for s in sequences):
+                raise SuiteError(source, f"sequences[{index}]", f"sequence {sequence.name} is "
+                                 "listed twice", "each template, gait, scene seed and seed once")
+            sequences.append(sequence)
+    return SuiteSpec(name=name, methods=methods, sequences=tuple(sequences),
+                     max_frames=max_frames, record=record, description=description,
+                     source=source)
+
+
+def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Path,
+                     source: str) -> list[SuiteSequence]:
+    """The sequences of one ``[[sequences]]`` table, each loaded once to check it."""
+    def fail(key: str, problem: str) -> SuiteError:
+        return SuiteError(source, f"{where}.{key}", problem,
+                          SEQUENCE_ALLOWED[key.split("[")[0]])
+
+    if not isinstance(entry, Mapping):
+        raise SuiteError(source, where, f"got {entry!r}", "a table with keys "
+                         f"{', '.join(SEQUENCE_ALLOWED)}")
+    for key in entry:
+        if key not in SEQUENCE_ALLOWED:
+            raise SuiteError(source, f"{where}.{key}", "unknown key",
+                             f"keys {', '.join(SEQUENCE_ALLOWED)}")
+    for key in _SEQUENCE_REQUIRED:
+        if key not in entry:
+            raise fail(key, "missing")
+    scenario = _resolve_scenario(entry["scenario"], base_dir, fail)
+    own_overrides = _checked_overrides(entry.get("overrides", {}), "overrides", fail)
+    overrides = {**suite_overrides, **own_overrides}
+    try:
+        template = load_scenario(scenario, overrides)
+    except ScenarioError as error:
+        problem = f"scenario {scenario_name(scenario)} is refused ({error})"
+        if error.key in own_overrides or error.key not in overrides:
+            raise fail("overrides" if error.key in own_overrides else "scenario",
+                       problem) from None
+        raise SuiteError(source, "overrides", problem, ALLOWED["overrides"]) from None
+    gaits = distinct_list(entry.get("gaits", [template.gait.preset]), "gaits", fail,
+                          lambda v: isinstance(v, str) and bool(v))
+    scene_seeds = distinct_list(entry["scene_seeds"], "scene_seeds", fail,
+                                lambda v: is_int(v) and v >= 0)
+    seeds = distinct_list(entry.get("seeds", [0]), "seeds", fail,
+                          lambda v: is_int(v) and v >= 0)
+    sequences = []
+    for index, gait in enumerate(gaits):
+        for scene_seed in scene_seeds:
+            for seed in seeds:
+                varied = {"gait.preset": gait, "scene_seed": scene_seed, "seed": seed}
+                try:
+                    load_scenario(scenario, {**overrides, **varied})
+                except ScenarioError as error:
+                    key = f"gaits[{index}]" if error.key == "gait.preset" else "scenario"
+                    raise fail(key, f"scenario {scenario_name(scenario)} with gait {gait!r}, "
+                                    f"scene seed {scene_seed}, seed {seed} is refused "
+                                    f"({error.problem})") from None
+                sequences.append(SuiteSequence(scenario, template.scene, gait, scene_seed, seed,
+                                          {**overrides, **varied}))
+    return sequences
+
+
+def _check_methods(methods: tuple[str, ...], fail: Fail) -> None:
+    """Every method resolves now (built-in, entry point or import path), before any run."""
+    for index, name in enumerate(methods):
+        try:
+            method_factory(name)
+        except MethodError as error:
+            raise fail(f"methods[{index}]", f"method {name!r}: {error.problem}") from None
+
+
+def _checked_overrides(overrides: Any, key: str, fail: Fail) -> dict:
+    """An overrides table as a dict: single values under dotted keys, not the varied ones."""
+    if not isinstance(overrides, Mapping):
+        raise fail(key, f"got {overrides!r}")
+    for dotted, value in overrides.items():
+        if dotted in VARIED_KEYS or not is_dotted_key(str(dotted)):
+            raise fail(key, f"key {dotted!r} is not allowed here (gait.preset, scene_seed and "
+                            "seed come from the sequence lists)")
+        if isinstance(value, Mapping):  # it would replace the scenario's whole table
+            raise fail(key, f"{dotted!r} is a table; write one dotted key per value, "
+                            f"e.g. \"{dotted}.{next(iter(value), 'field')}\" = ...")
+    return dict(overrides)
+
+
+def _resolve_scenario(entry: Any, base_dir: Path, fail: Fail) -> str:
+    """A shipped name stays a name; a path becomes absolute (from the suite file's folder)."""
+    if not isinstance(entry, str) or not entry.strip():
+        raise fail("scenario", f"got {entry!r}")
+    is_path = entry.endswith(".toml") or "/" in entry or os.sep in entry
+    target = Path(entry) if Path(entry).is_absolute() or not is_path else base_dir / entry
+    try:
+        found = resolve_scenario_path(str(target))
+    except FileNotFoundError as error:
+        raise fail("scenario", str(error)) from None
+    return str(found.resolve()) if is_path else entry

@@ -1,0 +1,74 @@
+"""Bootstrap intervals over sequences: means, paired differences, degenerate samples."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.harness.suite.statistics import BCA, PERCENTILE, mean_interval, paired_difference
+
+
+def test_the_interval_of_a_known_sample_contains_its_mean():
+    samples = np.random.default_rng(1).gamma(4.0, 0.25, size=24)
+    interval = mean_interval(samples)
+    assert interval.method == BCA and interval.n == 24
+    assert interval.mean == pytest.approx(samples.mean())
+    assert interval.low < interval.mean < interval.high
+    assert interval.high - interval.low < samples.max() - samples.min()
+
+
+def test_the_same_samples_give_the_same_interval_bit_for_bit():
+    samples = np.random.default_rng(2).normal(1.0, 0.3, size=20)
+    assert mean_interval(samples) == mean_interval(samples.copy())
+
+
+def test_a_paired_difference_with_a_clear_sign_excludes_zero():
+    rng = np.random.default_rng(3)
+    base = rng.gamma(4.0, 0.25, size=24)  # sequences differ a lot; the gap between methods not
+    better, worse = base, base + 0.2 + rng.normal(0.0, 0.02, size=24)
+    difference = paired_difference(better, worse)
+    assert difference.high < 0 and difference.excludes_zero()
+    assert difference.mean == pytest.approx(-0.2, abs=0.02)
+    # Unpaired, the spread between sequences would hide the gap: the intervals overlap.
+    assert mean_interval(worse).low < mean_interval(better).high
+
+
+def test_identical_methods_give_a_difference_interval_containing_zero():
+    rng = np.random.default_rng(4)
+    base = rng.gamma(4.0, 0.25, size=24)
+    first, second = base + rng.normal(0, 0.05, 24), base + rng.normal(0, 0.05, 24)
+    difference = paired_difference(first, second)
+    assert difference.low < 0 < difference.high and not difference.excludes_zero()
+
+
+def test_all_equal_samples_fall_back_to_the_percentile_interval():
+    interval = mean_interval([0.25] * 12)
+    assert interval.method == PERCENTILE
+    assert (interval.mean, interval.low, interval.high, interval.n) == (0.25, 0.25, 0.25, 12)
+    same = paired_difference([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+    assert (same.low, same.high, same.excludes_zero()) == (0.0, 0.0, False)
+
+
+@pytest.mark.parametrize("samples, n, mean", [
+    ([], 0, math.nan), ([math.nan, math.nan], 0, math.nan), ([0.7], 1, 0.7),
+    ([0.7, math.nan], 1, 0.7)])
+def test_fewer_than_two_samples_give_no_interval(samples, n, mean):
+    interval = mean_interval(samples)
+    assert interval.n == n and interval.method == ""
+    assert math.isnan(interval.low) and math.isnan(interval.high)
+    assert (math.isnan(interval.mean) if math.isnan(mean) else interval.mean == mean)
+    assert not interval.excludes_zero()
+
+
+def test_nan_samples_are_left_out_and_pairs_need_both_sides():
+    interval = mean_interval([1.0, math.nan, 3.0, 2.0])
+    assert interval.n == 3 and interval.mean == 2.0
+    difference = paired_difference([1.0, math.nan, 3.0], [0.5, 1.0, math.nan])
+    assert difference.n == 1 and difference.mean == 0.5
+
+
+def test_paired_samples_of_different_lengths_are_refused():
+    with pytest.raises(ValueError, match="same length"):
+        paired_difference([1.0, 2.0], [1.0])

@@ -1,0 +1,324 @@
+"""Suites: file validation, the held-out suite's seeds, counting rules, outputs, the CI suite.
+
+The counting tests build runs with ``fake_metrics``: a run folder written by the real writer
+(``sim.harness.report.write_run_outputs``) from made-up frame records, so the tables read the
+real metrics.json layout. The end-to-end test runs the shipped CI suite for real (two 2-s walks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from scenarios import SCENARIOS_DIR, SUITES_DIR
+from sim.harness.report import read_metrics, write_run_outputs
+from sim.harness.scenario import load_scenario
+from sim.harness.scoring import FrameRecord, summarize
+from sim.harness.suite import (COLUMNS, FIGURES, TABLE_CSV, TABLE_JSON, TABLE_MD, SuiteError,
+                               add_suite_parser, load_suite, plan_suite, run_suite,
+                               suite_from_dict, write_suite_outputs)
+from sim.harness.sweep import execute as sweep_execute
+from sim.harness.sweep import RunOutcome, load_sweep
+
+HELDOUT = SUITES_DIR / "heldout.toml"
+CI_SUITE = SUITES_DIR / "ci_suite.toml"
+REPO = SCENARIOS_DIR.parent
+SCENES = {"corridor", "office", "lab", "hall"}
+GAITS = {"default", "paper_like"}
+ROTATION = next(iter(FIGURES))
+
+
+def small_spec(**changes):
+    raw = {"name": "tiny", "methods": ["t2fuzzy", "sift"], "max_frames": 3,
+           "sequences": [{"scenario": "corridor_straight", "scene_seeds": [5, 6]},
+                         {"scenario": "paper_like_gait", "gaits": ["default", "paper_like"],
+                          "scene_seeds": [5], "seeds": [0, 1]}]}
+    return suite_from_dict({**raw, **changes}, source="tiny.toml")
+
+
+def sequence_entry(**changes):
+    return {"sequences": [{"scenario": "corridor_straight", "scene_seeds": [5], **changes}]}
+
+
+# --- The file ------------------------------------------------------------------------------
+
+def test_sequences_are_each_entrys_product_in_file_order(tmp_path):
+    spec = small_spec()
+    assert [s.name for s in spec.sequences] == [
+        "corridor_straight__default__scene5__seed0", "corridor_straight__default__scene6__seed0",
+        "paper_like_gait__default__scene5__seed0", "paper_like_gait__default__scene5__seed1",
+        "paper_like_gait__paper_like__scene5__seed0",
+        "paper_like_gait__paper_like__scene5__seed1"]
+    assert [s.scene for s in spec.sequences] == ["corridor"] * 2 + ["hall"] * 4
+    runs = plan_suite(spec, tmp_path)
+    config = runs[5].config
+    assert config.out_dir == str(tmp_path / "runs" / runs[5].name)
+    assert config.methods == ("t2fuzzy", "sift") and config.max_frames == 3
+    assert dict(config.overrides) == {"gait.preset": "paper_like", "scene_seed": 5, "seed": 1}
+    scenario = load_scenario(config.scenario, config.overrides)
+    assert (scenario.scene, scenario.scene_seed, scenario.seed, scenario.gait.preset) == \
+        ("hall", 5, 1, "paper_like")
+
+
+def test_entry_overrides_apply_over_the_suites():
+    spec = small_spec(overrides={"duration_s": 6.0, "sensor.noise_scale": 2.0}, sequences=[
+        {"scenario": "corridor_straight", "scene_seeds": [5]},
+        {"scenario": "lab_clutter", "scene_seeds": [5], "overrides": {"duration_s": 8.0}}])
+    first, second = (dict(s.overrides) for s in spec.sequences)
+    assert first["duration_s"] == 6.0 and second["duration_s"] == 8.0
+    assert first["sensor.noise_scale"] == second["sensor.noise_scale"] == 2.0
+
+
+@pytest.mark.parametrize("changes, key, allowed", [
+    ({"colour": 1}, "colour", "keys name, description"),
+    ({"methods": ["surf"]}, "methods[0]", "t2fuzzy"),
+    ({"methods": ["sift", "sift"]}, "methods[1]", "distinct methods"),
+    ({"max_frames": 0}, "max_frames", "integer >= 1"),
+    ({"record": "no"}, "record", "true or false"),
+    ({"name": "a b"}, "name", "letters, digits"),
+    ({"overrides": {"seed": 3}}, "overrides", "not gait.preset, scene_seed, seed"),
+    ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
+    ({"overrides": {"sensor.fsp": 20.0}}, "overrides", "single values"),
+    (sequence_entry(overrides={"sensor.fsp": 20.0}), "sequences[0].overrides", "single values"),
+    ({"sequences": []}, "sequences", "[[sequences]] tables"),
+    ({"sequences": ["corridor_straight"]}, "sequences[0]", "a table with keys scenario"),
+    (sequence_entry(gait="default"), "sequences[0].gait", "keys scenario, gaits"),
+    ({"sequences": [{"scene_seeds": [5]}]}, "sequences[0].scenario", "shipped scenario name"),
+    (sequence_entry(scenario="no_such_walk"), "sequences[0].scenario", "shipped scenario"),
+    (sequence_entry(scene_seeds=[5, -1]), "sequences[0].scene_seeds[1]", "integers >= 0"),
+    (sequence_entry(scene_seeds=[5, 5]), "sequences[0].scene_seeds[1]", "distinct"),
+    (sequence_entry(seeds=[True]), "sequences[0].seeds[0]", "integers >= 0"),
+    (sequence_entry(gaits=["limp"]), "sequences[0].gaits[0]", "GAIT_PRESETS"),
+    (sequence_entry(gaits="default"), "sequences[0].gaits", "non-empty list"),
+    (sequence_entry(overrides={"scene_seed": 1}), "sequences[0].overrides", "not gait.preset"),
+    ({"sequences": [{"scenario": "corridor_straight", "scene_seeds": [5]},
+                    {"scenario": "corridor_straight", "scene_seeds": [6, 5]}]},
+     "sequences[1]", "each template, gait, scene seed and seed once"),
+])
+def test_invalid_suites_name_the_file_the_key_and_what_is_allowed(changes, key, allowed):
+    with pytest.raises(SuiteError) as info:
+        small_spec(**changes)
+    message = str(info.value)
+    assert isinstance(info.value, ValueError) and "\n" not in message
+    assert message.startswith(f"tiny.toml: {key}: "), message
+    assert allowed in message.split("; allowed: ")[-1], message
+
+
+def test_missing_keys_bad_toml_and_absent_files_are_named(tmp_path):
+    with pytest.raises(SuiteError, match=r"^<dict>: sequences: missing"):
+        suite_from_dict({"methods": ["sift"]})
+    with pytest.raises(SuiteError, match=r"^<dict>: sequences\[0\]\.scene_seeds: missing"):
+        suite_from_dict({"methods": ["sift"], "sequences": [{"scenario": "lab_clutter"}]})
+    broken = tmp_path / "broken.toml"
+    broken.write_text("methods = [\n")
+    with pytest.raises(SuiteError, match=r"broken.toml: \(file\): not valid TOML"):
+        load_suite(broken)
+    with pytest.raises(FileNotFoundError, match="no suite file"):
+        load_suite(tmp_path / "absent.toml")
+
+
+def test_relative_scenario_paths_are_taken_from_the_suite_files_folder(tmp_path):
+    (tmp_path / "walks").mkdir()
+    (tmp_path / "walks" / "walk.toml").write_text((SCENARIOS_DIR / "lab_clutter.toml").read_text())
+    suite = tmp_path / "my_suite.toml"
+    suite.write_text('methods = ["sift"]\n[[sequences]]\nscenario = "walks/walk.toml"\n'
+                     'scene_seeds = [5]\n')
+    spec = load_suite(suite)
+    assert spec.name == "my_suite"
+    assert spec.sequences[0].scenario == str((tmp_path / "walks" / "walk.toml").resolve())
+    assert spec.sequences[0].name == "walk__default__scene5__seed0"
+
+
+# --- The held-out suite ----------------------------------------------------------------------
+
+def test_heldout_suite_spans_every_scene_and_gait():
+    spec = load_suite(HELDOUT)
+    assert len(spec.sequences) >= 24
+    assert {s.scene for s in spec.sequences} == SCENES
+    assert {(s.scene, s.gait) for s in spec.sequences} == {(c, g) for c in SCENES for g in GAITS}
+    for sequence in spec.sequences:
+        scenario = load_scenario(sequence.scenario, sequence.overrides)
+        walking_s = scenario.duration_s - scenario.commands[1].t
+        assert walking_s >= 8.0, sequence.name  # a few gait cycles
+    assert not spec.record
+
+
+def heldout_scene_seeds() -> set[int]:
+    return {s.scene_seed for s in load_suite(HELDOUT).sequences}
+
+
+def test_no_shipped_scenario_sweep_or_other_suite_uses_a_heldout_scene_seed():
+    heldout = heldout_scene_seeds()
+    scenario_files = sorted(SCENARIOS_DIR.glob("*.toml")) + sorted(SCENARIOS_DIR.glob("ci/*.toml"))
+    assert len(scenario_files) >= 10
+    for path in scenario_files:
+        assert load_scenario(path).scene_seed not in heldout, path
+    for path in sorted(SCENARIOS_DIR.glob("sweeps/*.toml")):
+        sweep = load_sweep(path)
+        for scenario in sweep.scenarios:
+            assert load_scenario(scenario, sweep.overrides).scene_seed not in heldout, path
+    for path in sorted(SUITES_DIR.glob("*.toml")):
+        if path != HELDOUT:
+            assert not {s.scene_seed for s in load_suite(path).sequences} & heldout, path
+
+
+#: A scene seed written in code: ``scene_seed = 3``, ``scene_seed=3``, ``build_scene("lab", 3)``.
+SEED_IN_CODE = re.compile(r"scene_seed\s*[=:]\s*(\d+)|build_scene\(\s*[\"'\w]+\s*,\s*"
+                          r"(?:seed\s*=\s*)?(\d+)")
+
+
+def test_no_code_or_test_in_the_repo_builds_a_heldout_scene():
+    heldout = heldout_scene_seeds()
+    files = [p for folder in ("sim", "stabilizer", "tests", "examples", "scenarios")
+             for p in (REPO / folder).rglob("*") if p.suffix in (".py", ".toml")]
+    assert files
+    for path in files:
+        if path == HELDOUT:
+            continue
+        for match in SEED_IN_CODE.finditer(path.read_text(encoding="utf-8")):
+            seed = int(match.group(1) or match.group(2))
+            assert seed not in heldout, f"{path}: {match.group(0)}"
+
+
+# --- Counting and outputs (fake runs) --------------------------------------------------------
+
+def fake_metrics(run_dir: Path, methods: dict[str, float | None], frames: int = 4) -> dict:
+    """A run folder whose methods have the given |error| on every frame (None: every frame
+    failed); returns its metrics.json."""
+    records = []
+    for frame in range(frames):
+        for method, error in methods.items():
+            failed = error is None
+            value = math.nan if failed else error
+            records.append(FrameRecord(
+                frame_index=frame, time_s=frame / 30, gait_cycle=0, reference_index=0,
+                method=method, status="too_few_matches" if failed else "ok", ms=1.0,
+                est_angle_deg=value, est_dx_px=value, est_dy_px=value, true_angle_deg=0.0,
+                true_dx_px=0.0, true_dy_px=0.0, truth_status="ok", truth_residual_px=0.1,
+                truth_points=100, err_angle_deg=value, err_dx_px=value, err_dy_px=value))
+    write_run_outputs(run_dir, scenario={"name": run_dir.name}, records=records,
+                      summary=summarize(records), meta={"frames_done": frames},
+                      status="complete", plots=False)
+    return read_metrics(run_dir)
+
+
+def outcomes_of(spec, tmp_path, errors_per_run):
+    """Outcomes of ``spec``'s runs from fake metrics: per run a dict method -> error, or a
+    string (the run raised with that message)."""
+    outcomes = []
+    for suite_run_, errors in zip(plan_suite(spec, tmp_path), errors_per_run):
+        if isinstance(errors, str):
+            outcomes.append(RunOutcome(suite_run_, None, error=errors))
+        else:
+            outcomes.append(RunOutcome(suite_run_, fake_metrics(Path(suite_run_.config.out_dir),
+                                                                errors)))
+    return outcomes
+
+
+def twelve_sequence_spec():
+    return small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": list(range(12))}])
+
+
+def test_a_method_without_successful_estimates_counts_as_failing_and_leaves_error_means(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6, 7]}])
+    outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 0.1, "sift": 0.5},
+                                            {"t2fuzzy": 0.2, "sift": None},
+                                            "RuntimeError: simulated crash"])
+    result = write_suite_outputs(tmp_path, spec, outcomes)
+    means = result.figures["means"]
+    assert means["t2fuzzy"][ROTATION]["n"] == 2 and means["sift"][ROTATION]["n"] == 1
+    assert means["sift"][ROTATION]["mean"] == pytest.approx(0.5)
+    assert means["sift"]["failure_rate"]["mean"] == pytest.approx(0.5)  # 0 and 1
+    assert means["sift"]["failure_rate"]["n"] == 2  # the crashed run counts for no method
+    assert len(result.rows) == 4 and len(result.failed) == 1
+    assert "1 failed" in result.markdown and "2 scored frames and are counted" in result.markdown
+
+
+def test_paired_differences_say_which_method_is_lower_and_whether_the_data_say_so(tmp_path):
+    spec = twelve_sequence_spec()
+    errors = [{"t2fuzzy": 0.1 + 0.05 * i, "sift": 0.3 + 0.05 * i + 0.01 * (i % 3)}
+              for i in range(12)]
+    result = write_suite_outputs(tmp_path, spec, outcomes_of(spec, tmp_path, errors))
+    rotation = next(d for d in result.figures["differences"] if d["figure"] == ROTATION)
+    assert (rotation["first"], rotation["second"], rotation["lower"]) == ("t2fuzzy", "sift",
+                                                                        "t2fuzzy")
+    assert rotation["clear"] and rotation["high"] < 0 and rotation["n"] == 12
+    failure = next(d for d in result.figures["differences"] if d["figure"] == "failure_rate")
+    assert not failure["clear"] and failure["mean"] == 0.0
+    assert "t2fuzzy is lower (interval excludes 0)" in result.markdown
+    assert "no clear difference (interval contains 0)" in result.markdown
+
+
+def test_few_sequences_give_intervals_but_no_verdict(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6, 7]}])
+    errors = [{"t2fuzzy": 0.1 * i, "sift": 0.1 * i + 1.0} for i in range(3)]
+    result = write_suite_outputs(tmp_path, spec, outcomes_of(spec, tmp_path, errors))
+    rotation = next(d for d in result.figures["differences"] if d["figure"] == ROTATION)
+    assert rotation["high"] < 0 and not rotation["clear"]
+    assert "too few sequences for a verdict" in result.markdown
+
+
+def test_an_interrupted_suite_writes_the_tables_of_the_runs_finished(tmp_path, monkeypatch):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
+
+    def first_then_interrupt(pending, run_fn, workers, ray_address):
+        yield RunOutcome(pending[0], fake_metrics(Path(pending[0].config.out_dir),
+                                                  {"t2fuzzy": 0.1, "sift": 0.2}))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_execute, "_run_local", first_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(spec, tmp_path)
+    assert "2 planned, 1 finished" in (tmp_path / TABLE_MD).read_text()
+    assert len(json.loads((tmp_path / TABLE_JSON).read_text())["rows"]) == 2
+
+
+def test_bad_backend_and_workers_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="unknown backend .dask.; accepted: local, ray"):
+        run_suite(small_spec(), tmp_path, backend="dask")
+    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+        run_suite(small_spec(), tmp_path, workers=0)
+
+
+# --- The CI suite, for real ------------------------------------------------------------------
+
+def run_command(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="egostab")
+    add_suite_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    return args.handler(args)
+
+
+def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
+    out = tmp_path / "suite"
+    assert run_command(["suite", str(CI_SUITE), "--out", str(out), "--workers", "2"]) == 0
+    markdown = (out / TABLE_MD).read_text()
+    assert "## Means over sequences" in markdown and "## Paired differences" in markdown
+    assert re.search(r"\| t2fuzzy \| \d+\.\d+ \[\d+\.\d+, \d+\.\d+\] \(n=2\)", markdown)
+    with open(out / TABLE_CSV, newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert tuple(rows[0]) == COLUMNS
+    assert [(r["sequence"], r["method"]) for r in rows] == [
+        (f"ci_corridor__default__scene{seed}__seed0", method)
+        for seed in (0, 1) for method in ("t2fuzzy", "sift")]
+    assert all(r["run_status"] == "complete" and r["frames"] == "60" for r in rows)
+    document = json.loads((out / TABLE_JSON).read_text())
+    for method in ("t2fuzzy", "sift"):
+        for figure in FIGURES:
+            interval = document["means"][method][figure]
+            assert interval["n"] == 2 and interval["method"] in ("BCa", "percentile")
+            assert interval["low"] <= interval["mean"] <= interval["high"]
+    assert [(d["first"], d["second"]) for d in document["differences"]] == \
+        [("t2fuzzy", "sift")] * len(FIGURES)
+    assert "suite folder:" in capsys.readouterr().out
+    # Run again: both runs are done, so nothing is simulated and the tables are the same.
+    assert run_command(["suite", str(CI_SUITE), "--out", str(out)]) == 0
+    again = (out / TABLE_MD).read_text()
+    assert "2 finished (2 already done before this call)" in again
+    assert json.loads((out / TABLE_JSON).read_text())["means"] == document["means"]
