@@ -165,8 +165,6 @@ def ground_truth_ms(n_frames: int = 500, stride: int = 2) -> float:
     The reference is a blocky random depth scene at 0.8-5 m; each current pose is turned and
     shifted a little (a walking head's motion), so most points stay in view.
     """
-
-
     rng = np.random.default_rng(0)
     shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
     depth = np.kron(rng.uniform(0.8, 5.0, (shape[0] // 8, shape[1] // 8)),
@@ -199,7 +197,9 @@ def scoring_ms(n_frames: int = 1000, methods: tuple[str, ...] = ("t2fuzzy", "sif
 
     rng = np.random.default_rng(0)
     images = rng.integers(0, 256, (8, 144, 176), dtype=np.uint8)
-    truth = GroundTruth(Motion(1.0, 2.0, 3.0), 0.5, 5000)
+    rows, cols = np.mgrid[0:SHAPE[0]:2, 0:SHAPE[1]:2]  # the ground truth's stride-2 sample
+    truth = GroundTruth.exact(Motion(1.0, 2.0, 3.0), np.stack([cols.ravel(), rows.ravel()], 1),
+                              SHAPE)
     estimate = Motion(1.1, 2.2, 2.9)
     itf = ItfAccumulator()
     records = []
@@ -225,8 +225,6 @@ def recording_ms(n_frames: int = 300, methods: Sequence[str] = ("t2fuzzy", "sift
     Synthetic SR4000-sized frames: noisy depth, its disparity image, a compensated frame per
     method, a 5-cluster segmentation with ellipses for the first method.
     """
-
-
     rng = np.random.default_rng(0)
     shape = (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)
     labels = np.kron(rng.integers(0, 6, (shape[0] // 16, shape[1] // 16)),

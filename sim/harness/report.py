@@ -9,7 +9,9 @@ the sweep's table, sim/harness/sweep/tables.py).
 Table I of Kang, Zhang & Park (2009) ("Errors in the ideal case") lists, for the rotation, the
 X-axis and the Y-axis displacement, one row per method with the mean and the variance of its
 errors; here the errors are absolute errors against the simulated ground truth, with the
-maximum beside them. Fig. 8/9 of the paper plot the displacements over the frames of a cycle;
+maximum beside them. Beside Table I, each method's end-point error (EPE, px) and how far it
+lies above the ground truth's own, the floor of any 2-D rigid estimate
+(sim/harness/scoring.py). Fig. 8/9 of the paper plot the displacements over the frames of a cycle;
 ``plot_estimates`` draws the same three stacked axes, estimate against truth.
 """
 
@@ -94,6 +96,17 @@ def table_one(scores: Mapping[str, MethodScore]) -> str:
                             "Frames"), rows)
 
 
+def epe_table(scores: Mapping[str, MethodScore]) -> str:
+    """Per method: mean EPE, the truth's mean EPE over the same frames (the floor), the mean
+    above it, and the variance and maximum of the per-frame EPE (px)."""
+    rows = [(method, format_number(score.epe.mean), format_number(score.epe_floor_px),
+             format_number(score.epe_above_floor_px), format_number(score.epe.variance),
+             format_number(score.epe.max), str(score.epe.n))
+            for method, score in scores.items()]
+    return markdown_table(("Method", "Mean EPE", "Floor (truth's EPE)", "Mean above floor",
+                           "Variance", "Max", "Frames"), rows)
+
+
 def reliability_table(scores: Mapping[str, MethodScore]) -> str:
     """Failure rate, time per frame and ITF (compensated vs raw) per method."""
     rows = [(method, f"{format_number(100 * score.failure_rate, 1)}% ({score.n_failed}/"
@@ -115,10 +128,13 @@ def cycle_table(summary: RunSummary) -> str:
             cells = [f"{format_number(score.errors[axis].mean)} / {format_number(score.errors[axis].variance)}"
                      for axis in AXES]
             rows.append((str(cycle), method, str(score.n_frames), *cells,
+                         f"{format_number(score.epe.mean)} / "
+                         f"{format_number(score.epe_above_floor_px)}",
                          f"{format_number(100 * score.failure_rate, 1)}%", format_number(score.itf_db),
                          format_number(score.itf_raw_db)))
     return markdown_table(("Cycle", "Method", "Frames", "Rotation (deg)", "X (px)", "Y (px)",
-                            "Failures", "ITF (dB)", "ITF raw (dB)"), rows)
+                            "EPE / above floor (px)", "Failures", "ITF (dB)", "ITF raw (dB)"),
+                          rows)
 
 
 def _scenario_name(scenario: Mapping, run_dir: Path) -> str:
@@ -145,6 +161,16 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         table_one(summary.run),
         "",
+        "## End-point error (px)",
+        "",
+        "EPE: the mean distance between where the estimate sends each sampled reference pixel "
+        "and where that pixel truly went (exact poses and depth), over the pixels that stay in "
+        "view. Floor: the same for the ground truth's own rigid fit, over the same frames; no "
+        "2-D rigid estimate gets far below it (the fit's RMS EPE is the exact lower bound of "
+        "any rigid estimate's RMS EPE; for the mean it is close, not exact).",
+        "",
+        epe_table(summary.run),
+        "",
         "## Failures, time and inter-frame transformation fidelity",
         "",
         "ITF: mean PSNR between consecutive frames compensated toward the same reference, on "
@@ -152,7 +178,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         reliability_table(summary.run),
         "",
-        "## Per gait cycle (mean / variance of |error|)",
+        "## Per gait cycle (mean / variance of |error|; EPE mean / mean above floor)",
         "",
         cycle_table(summary),
         "",
@@ -165,7 +191,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
 
 
 def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:
-    """One screen for the end of a run: Table I, failures/time/ITF, where the files are.
+    """One screen for the end of a run: Table I, EPE, failures/time/ITF, where the files are.
 
     Args:
         metrics: the content of metrics.json (``RunFiles.metrics`` or ``read_metrics``).
@@ -173,7 +199,7 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
     """
     summary = RunSummary.from_dict(metrics["summary"])
     lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
-             "", reliability_table(summary.run)]
+             "", epe_table(summary.run), "", reliability_table(summary.run)]
     if run_dir is not None:
         listed = metrics.get("files", {})
         names = [(what, name) for what, name in listed.items() if what != "plots"]
@@ -375,8 +401,9 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
 
     Returns:
         Dicts with the keys "method", "frames", the mean and the variance of |error| of each
-        axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "failure_rate",
-        "ms_per_frame", "itf_db" and "itf_raw_db"; a figure metrics.json has none of is NaN.
+        axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "epe_mean_px",
+        "epe_above_floor_px", "failure_rate", "ms_per_frame", "itf_db" and "itf_raw_db"; a
+        figure metrics.json has none of is NaN.
         A run that scored no frame (it fell at once) has no row.
     """
     scores = ((metrics or {}).get("summary") or {}).get("run") or {}
@@ -387,6 +414,8 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
                      **{MEAN_ERROR_COLUMNS[axis]: score.errors[axis].mean for axis in AXES},
                      **{ERROR_VARIANCE_COLUMNS[axis]: score.errors[axis].variance
                         for axis in AXES},
+                     "epe_mean_px": score.epe.mean,
+                     "epe_above_floor_px": score.epe_above_floor_px,
                      "failure_rate": score.failure_rate, "ms_per_frame": score.ms_mean,
                      "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db})
     return rows
@@ -434,15 +463,17 @@ def _long_table(runs: list[Path]) -> str:
                 str((document.get("scenario") or {}).get("name", "")), document["status"])
         scores = score_rows(document)
         if not scores:
-            rows.append((*head, "-", "0", *("n/a",) * 6))
+            rows.append((*head, "-", "0", *("n/a",) * 7))
         rows += [(*head, score["method"], str(score["frames"]),
                   *(f"{format_number(score[MEAN_ERROR_COLUMNS[axis]])} / "
                     f"{format_number(score[ERROR_VARIANCE_COLUMNS[axis]])}" for axis in AXES),
+                  f"{format_number(score['epe_mean_px'])} / "
+                  f"{format_number(score['epe_above_floor_px'])}",
                   f"{format_number(100 * score['failure_rate'], 1)}%",
                   format_number(score["ms_per_frame"]),
                   f"{format_number(score['itf_db'])} / {format_number(score['itf_raw_db'])}")
                  for score in scores]
     return markdown_table(("Run", "Scenario", "Status", "Method", "Frames",
                            "Rotation mean / var (deg)", "X mean / var (px)",
-                           "Y mean / var (px)", "Failure rate", "ms/frame",
-                           "ITF comp / raw (dB)"), rows)
+                           "Y mean / var (px)", "EPE / above floor (px)", "Failure rate",
+                           "ms/frame", "ITF comp / raw (dB)"), rows)

@@ -4,7 +4,10 @@ docs/design.md, "Scoring": for each method and each of rotation (deg), x (px) an
 variance and maximum of the absolute error (the paper's Table I reports mean and variance of
 the errors "for one cycle"); the failure rate (frames with no estimate); time per frame; and the
 inter-frame transformation fidelity (ITF), the mean PSNR between consecutive compensated frames,
-beside the raw stream's ITF.
+beside the raw stream's ITF. Beside the per-axis errors, the end-point error (EPE): the mean
+distance (px) between where the estimate sends each sampled reference pixel and where that pixel
+truly went, with the ground truth's own EPE as the floor no 2-D rigid estimate gets far below
+(``sim.harness.ground_truth``).
 
 Frames whose ground truth failed are excluded from the error statistics and counted apart.
 Variances are population variances (ddof = 0) of the absolute errors.
@@ -37,7 +40,11 @@ class FrameRecord:
     """One (frame, method) result: estimate, truth, absolute errors, status and time.
 
     Errors are NaN unless both the estimate and the ground truth succeeded. The rotation error
-    is wrapped into (-180, 180] before its absolute value is taken.
+    is wrapped into (-180, 180] before its absolute value is taken. The end-point errors (the
+    fields after ``err_dy_px``, last so that frames.csv keeps its older columns in place):
+    ``epe_px`` and ``epe_rms_px`` are the mean and RMS EPE of the estimate, ``truth_epe_px``
+    the mean EPE of the truth's rigid fit (its RMS is ``truth_residual_px``); NaN also when the
+    truth carries no correspondences.
     """
 
     frame_index: int
@@ -59,6 +66,9 @@ class FrameRecord:
     err_angle_deg: float
     err_dx_px: float
     err_dy_px: float
+    epe_px: float = math.nan
+    epe_rms_px: float = math.nan
+    truth_epe_px: float = math.nan
 
     @classmethod
     def score(cls, *, frame_index: int, time_s: float, gait_cycle: int, reference_index: int,
@@ -68,12 +78,14 @@ class FrameRecord:
         if estimate.ok and truth.ok:
             errors = (abs(float(wrap_angle_deg(estimate.angle_deg - truth.motion.angle_deg))),
                       abs(estimate.dx - truth.motion.dx), abs(estimate.dy - truth.motion.dy))
+        epe_px, epe_rms_px = truth.end_point_error(estimate)
         return cls(int(frame_index), float(time_s), int(gait_cycle), int(reference_index),
                    str(method), estimate.status, float(ms),
                    *(float(value) for value in estimate.as_tuple()),
                    *(float(value) for value in truth.motion.as_tuple()),
                    truth.motion.status, float(truth.residual_rms_px), int(truth.n_points),
-                   *(float(value) for value in errors))
+                   *(float(value) for value in errors), epe_px, epe_rms_px,
+                   float(truth.residual_mean_px) if truth.ok else math.nan)
 
     @property
     def scored(self) -> bool:
@@ -88,6 +100,11 @@ class FrameRecord:
 
     def error_of(self, axis: str) -> float:
         return getattr(self, _ERROR_FIELDS[axis])
+
+    @property
+    def epe_scored(self) -> bool:
+        """True when the end-point error is a number (scored, and the truth had points)."""
+        return not math.isnan(self.epe_px)
 
 
 _ESTIMATE_FIELDS = dict(zip(AXES, ("est_angle_deg", "est_dx_px", "est_dy_px")))
@@ -124,6 +141,10 @@ class ErrorStats:
         return cls(float(values.mean()), float(values.var()), float(values.max()), values.size)
 
 
+#: The statistics of no frames (a score read from a metrics.json older than the figure).
+NO_ERRORS = ErrorStats(math.nan, math.nan, math.nan, 0)
+
+
 @dataclass(frozen=True)
 class MethodScore:
     """Aggregate scores of one method over a set of frames (a gait cycle or a whole run).
@@ -138,6 +159,9 @@ class MethodScore:
         ms_mean, ms_median: estimation time per frame, milliseconds.
         itf_db, itf_raw_db: mean PSNR of consecutive compensated / raw frames (NaN if unknown).
         failures: status -> count of the failed frames.
+        epe: ErrorStats of the per-frame mean end-point error (``FrameRecord.epe_px``) over
+            the frames that have one.
+        epe_floor_px: mean of the truth's own mean end-point error over the same frames.
     """
 
     method: str
@@ -152,20 +176,33 @@ class MethodScore:
     itf_db: float = math.nan
     itf_raw_db: float = math.nan
     failures: dict[str, int] = field(default_factory=dict)
+    epe: ErrorStats = NO_ERRORS
+    epe_floor_px: float = math.nan
+
+    @property
+    def epe_above_floor_px(self) -> float:
+        """Mean EPE above the truth's own: what the estimates add to the unavoidable part."""
+        return self.epe.mean - self.epe_floor_px
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "MethodScore":
-        """Inverse of ``dataclasses.asdict`` after a JSON round trip (None -> NaN)."""
+        """Inverse of ``dataclasses.asdict`` after a JSON round trip (None -> NaN).
+
+        A metrics.json written before the end-point error was scored loads with NaN EPE.
+        """
         values = dict(data)
         values["errors"] = {axis: ErrorStats.from_dict(values["errors"][axis]) for axis in AXES}
         for name in ("failure_rate", "ms_mean", "ms_median", "itf_db", "itf_raw_db"):
             values[name] = _float(values[name])
+        values["epe"] = ErrorStats.from_dict(values["epe"]) if "epe" in values else NO_ERRORS
+        values["epe_floor_px"] = _float(values.get("epe_floor_px"))
         return cls(**values)
 
     @classmethod
     def of(cls, method: str, records: list[FrameRecord], itf_db: float = math.nan,
            itf_raw_db: float = math.nan) -> "MethodScore":
         scored = [record for record in records if record.scored]
+        with_epe = [record for record in records if record.epe_scored]
         failed = Counter(record.status for record in records if record.status != OK)
         times = np.asarray([record.ms for record in records], dtype=np.float64)
         return cls(
@@ -177,6 +214,9 @@ class MethodScore:
             ms_mean=float(times.mean()) if times.size else math.nan,
             ms_median=float(np.median(times)) if times.size else math.nan,
             itf_db=itf_db, itf_raw_db=itf_raw_db, failures=dict(sorted(failed.items())),
+            epe=ErrorStats.of(record.epe_px for record in with_epe),
+            epe_floor_px=(float(np.mean([record.truth_epe_px for record in with_epe]))
+                          if with_epe else math.nan),
         )
 
 

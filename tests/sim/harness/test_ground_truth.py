@@ -16,7 +16,7 @@ import pytest  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame  # noqa: E402
-from sim.harness.ground_truth import ground_truth  # noqa: E402
+from sim.harness.ground_truth import GroundTruth, ground_truth  # noqa: E402
 from stabilizer.api import available_methods, estimate  # noqa: E402
 from stabilizer.inputs import depth_to_disparity  # noqa: E402
 from stabilizer.motion import Motion, apply_motion, image_centre  # noqa: E402
@@ -275,3 +275,94 @@ def test_estimators_agree_in_sign_with_the_truth_on_mujoco_frames(mujoco_frames,
         for true_value, value, clear in zip(truth, found.as_tuple(), (2.0, 4.0, 4.0)):
             if abs(true_value) >= clear:
                 assert np.sign(value) == np.sign(true_value), (turn, truth, found.as_tuple())
+
+
+# --------------------------------------------------------------------------- end-point error
+def test_the_truths_own_end_point_error_is_the_fits_floor():
+    # Walking toward a wall: the zoom leaves a residual of several px no rigid motion removes.
+    wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
+    truth = ground_truth(*_frames(world=wall, current_pos=np.array([0.3, 0.0, 0.0])))
+    mean, rms = truth.end_point_error(truth.motion)
+    assert rms == pytest.approx(truth.residual_rms_px, rel=1e-5)
+    assert mean == pytest.approx(truth.residual_mean_px, rel=1e-5)
+    assert 0.0 < truth.residual_mean_px <= truth.residual_rms_px
+    # The least-squares fit minimises the squared end-point error: no rigid motion has a
+    # lower RMS.
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        other = Motion(*(np.array(truth.motion.as_tuple()) + rng.normal(0, [0.2, 0.5, 0.5])))
+        assert truth.end_point_error(other)[1] > truth.residual_rms_px
+
+
+@pytest.mark.parametrize("offset", [(3.0, -4.0), (-0.6, 0.8), (0.0, 0.0)])
+def test_a_known_offset_from_an_exactly_rigid_truth_has_its_length_as_end_point_error(offset):
+    # A pure roll with square pixels is an exact 2-D rotation: every point moves rigidly.
+    truth = ground_truth(*_frames(SQUARE_PIXELS, roll_deg=7.0), intrinsics=SQUARE_PIXELS)
+    assert truth.residual_rms_px == pytest.approx(0.0, abs=1e-6)
+    shifted = Motion(truth.motion.angle_deg, truth.motion.dx + offset[0],
+                     truth.motion.dy + offset[1])
+    mean, rms = truth.end_point_error(shifted)
+    assert mean == pytest.approx(math.hypot(*offset), abs=1e-4)
+    assert rms == pytest.approx(math.hypot(*offset), abs=1e-4)
+
+
+def test_end_point_error_is_nan_for_a_failed_estimate_or_truth():
+    truth = ground_truth(*_frames(roll_deg=3.0))
+    assert all(math.isnan(v) for v in truth.end_point_error(Motion.failed("no_structure")))
+    no_truth = ground_truth(*_frames(yaw_deg=180.0))
+    assert no_truth.correspondences is None and math.isnan(no_truth.residual_mean_px)
+    assert all(math.isnan(v) for v in no_truth.end_point_error(Motion(0.0, 0.0, 0.0)))
+    without_points = dataclasses.replace(truth, correspondences=None)
+    assert all(math.isnan(v) for v in without_points.end_point_error(truth.motion))
+
+
+def test_correspondences_are_the_fitted_points_in_float32_at_the_stride():
+    truth = ground_truth(*_frames(roll_deg=2.0, yaw_deg=1.0), stride=2)
+    points = truth.correspondences
+    assert points.source_px.dtype == points.target_px.dtype == np.float32
+    assert points.source_px.shape == points.target_px.shape == (truth.n_points, 2)
+    assert np.all(points.source_px % 2 == 0) and points.shape == (144, 176)
+
+
+def test_an_exact_truth_sends_its_points_where_the_motion_does():
+    rows, cols = np.mgrid[0:144:4, 0:176:4]
+    source = np.stack([cols.ravel(), rows.ravel()], axis=1)
+    truth = GroundTruth.exact(Motion(3.0, -2.0, 5.0), source, (144, 176))
+    assert truth.ok and truth.residual_rms_px == truth.residual_mean_px == 0.0
+    # The turn and the shift carry the outermost rows and columns out of the image.
+    assert 0.8 * source.shape[0] < truth.n_points < source.shape[0]
+    assert truth.correspondences.source_px.shape == (truth.n_points, 2)
+    assert truth.end_point_error(truth.motion) == pytest.approx((0.0, 0.0), abs=1e-4)
+    assert truth.end_point_error(Motion(3.0, 1.0, 1.0)) == pytest.approx((5.0, 5.0), abs=1e-4)
+    gone = GroundTruth.exact(Motion(0.0, 500.0, 0.0), source, (144, 176))
+    assert gone.n_points == 0 and all(math.isnan(v) for v in gone.end_point_error(gone.motion))
+
+
+# --------------------------------------------------------------------------- no surface
+def test_far_clip_depth_is_no_surface():
+    # The raw render gives pixels that see nothing the far clip depth (20 m in an assembled
+    # world). Boxes without a wall behind them: everything else is open.
+    boxes = box_world()[1:]
+    reference, current = _frames(world=boxes, current_pos=np.array([0.05, 0.08, 0.0]),
+                                 yaw_deg=1.5)
+
+    def far_clipped(frame):
+        return np.where(frame.depth_m > 0, frame.depth_m, 20.0).astype(np.float32)
+
+    assert np.count_nonzero(reference.depth_m == 0) > 1000
+    open_sky = ground_truth(reference, current, reference_depth_m=reference.depth_m,
+                            current_depth_m=current.depth_m)
+    clipped = ground_truth(reference, current, reference_depth_m=far_clipped(reference),
+                           current_depth_m=far_clipped(current))
+    assert clipped == open_sky
+    # Without the limit the far clip enters the fit as a wall at 20 m, and moves the truth.
+    as_wall = ground_truth(reference, current, reference_depth_m=far_clipped(reference),
+                           current_depth_m=far_clipped(current), max_depth_m=math.inf)
+    assert as_wall.n_points > clipped.n_points + 1000
+    assert abs(as_wall.motion.dx - clipped.motion.dx) > 0.5
+
+
+@pytest.mark.parametrize("max_depth_m", [0.0, -1.0, math.nan])
+def test_bad_max_depth_is_rejected(max_depth_m):
+    with pytest.raises(ValueError, match="max_depth_m"):
+        ground_truth(*_frames(), max_depth_m=max_depth_m)

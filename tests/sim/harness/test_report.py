@@ -13,20 +13,30 @@ from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, read_metrics, score_rows,
                                 table_one, terminal_summary, write_run_outputs)
+from dataclasses import replace
+
 from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
                                 summarize)
 from stabilizer.motion import Motion
 
 METHODS = ("t2fuzzy", "sift")
 SCENARIO = {"name": "corridor walk", "seed": 11, "walk": {"speed": 0.1}, "limits": (1, 2)}
+#: Reference pixels the truths carry, to score end-point errors.
+GRID = np.stack([c.ravel() for c in np.mgrid[0:176:8, 0:144:8]], axis=1)
+#: The columns frames.csv had before the end-point error; they keep their places.
+OLD_COLUMNS = ("frame_index", "time_s", "gait_cycle", "reference_index", "method", "status",
+               "ms", "est_angle_deg", "est_dx_px", "est_dy_px", "true_angle_deg", "true_dx_px",
+               "true_dy_px", "truth_status", "truth_residual_px", "truth_points",
+               "err_angle_deg", "err_dx_px", "err_dy_px")
 
 
 def _records(n_frames=40, seed=0):
     rng = np.random.default_rng(seed)
     records = []
     for i in range(n_frames):
-        truth = GroundTruth(Motion(4 * np.sin(i / 5), 15 * np.sin(i / 4), 3 * np.cos(i / 6)),
-                            0.4, 1200)
+        truth = GroundTruth.exact(
+            Motion(4 * np.sin(i / 5), 15 * np.sin(i / 4), 3 * np.cos(i / 6)), GRID, (144, 176))
+        truth = replace(truth, residual_rms_px=0.4, residual_mean_px=0.3)
         if i == 7:
             truth = GroundTruth(Motion.failed("no_overlap"), math.nan, 0)
         for method in METHODS:
@@ -70,12 +80,16 @@ def test_frames_csv_has_one_row_per_frame_and_method(run):
     with files.frames_csv.open() as handle:
         rows = list(csv.DictReader(handle))
     assert tuple(rows[0]) == RECORD_FIELDS
+    assert RECORD_FIELDS == (*OLD_COLUMNS, "epe_px", "epe_rms_px", "truth_epe_px")
     assert len(rows) == len(records) == 80
     first = records[0]
     assert float(rows[0]["est_dx_px"]) == first.est_dx_px  # floats round-trip exactly
     failed = [row for row in rows if row["status"] != "ok"]
     assert {row["status"] for row in failed} == {"too_few_matches"}
     assert all(math.isnan(float(row["err_dx_px"])) for row in failed)
+    assert all(math.isnan(float(row["epe_px"])) for row in failed)
+    assert float(rows[0]["epe_px"]) == first.epe_px > 0.0
+    assert float(rows[0]["truth_epe_px"]) == 0.3
 
 
 def test_metrics_json_has_scenario_seed_status_versions_commit_and_scores(run):
@@ -93,6 +107,10 @@ def test_metrics_json_has_scenario_seed_status_versions_commit_and_scores(run):
     assert sift["n_failed"] == 4 and sift["n_truth_failed"] == 1
     assert sift["errors"]["x"]["mean"] == pytest.approx(summary.run["sift"].errors["x"].mean)
     assert sift["itf_db"] == 100.0
+    assert set(sift["epe"]) == {"mean", "variance", "max", "n"} and sift["epe"]["n"] == 35
+    assert sift["epe"]["mean"] == pytest.approx(summary.run["sift"].epe.mean)
+    assert sift["epe_floor_px"] == pytest.approx(0.3)
+    assert document["summary"]["cycles"]["1"]["sift"]["epe"]["max"] > 0.0
     assert set(document["summary"]["cycles"]) == {"0", "1"}
     assert document["files"]["plots"] == [p.name for p in files.plots]
     assert read_metrics(files.run_dir) == document
@@ -112,6 +130,11 @@ def test_summary_md_is_table_one_layout(run):
     rotation = summary.run["t2fuzzy"].errors["rotation"]
     assert f"| {rotation.mean:.2f} | {rotation.variance:.2f} | {rotation.max:.2f} |" in body[0]
     assert "ITF raw (dB)" in text and "complete" in text and "Per gait cycle" in text
+    header = ("| Method | Mean EPE | Floor (truth's EPE) | Mean above floor | Variance | Max "
+              "| Frames |")
+    epe_rows = lines[lines.index(header) + 2:lines.index(header) + 4]
+    epe = summary.run["sift"].epe
+    assert epe_rows[1].startswith(f"| sift | {epe.mean:.2f} | 0.30 | {epe.mean - 0.3:.2f} | ")
     assert "`estimates_sift.png`" in text
 
 
@@ -168,6 +191,8 @@ def test_score_rows_read_each_methods_figures_back_from_metrics(run, tmp_path):
     assert sift["frames"] == 40 and sift["failure_rate"] == pytest.approx(0.1)
     assert sift[MEAN_ERROR_COLUMNS["x"]] == summary.run["sift"].errors["x"].mean
     assert sift["ms_per_frame"] == summary.run["sift"].ms_mean and sift["itf_db"] == 100.0
+    assert sift["epe_mean_px"] == summary.run["sift"].epe.mean
+    assert sift["epe_above_floor_px"] == pytest.approx(summary.run["sift"].epe.mean - 0.3)
     without_itf = write_run_outputs(tmp_path, scenario={}, records=records[:10],
                                     summary=summarize(records[:10]), meta={},
                                     status="complete", plots=False)

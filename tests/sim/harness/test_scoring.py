@@ -1,13 +1,15 @@
 """Per-frame records, per-cycle/per-run aggregates and the ITF accumulator (docs/design.md, Scoring)."""
 
+import dataclasses
+import json
 import math
 
 import numpy as np
 import pytest
 
 from sim.harness.ground_truth import GroundTruth
-from sim.harness.scoring import (AXES, RAW_STREAM, RECORD_FIELDS, ErrorStats, FrameRecord, ItfAccumulator,
-                         masked_psnr_db, summarize)
+from sim.harness.scoring import (AXES, RAW_STREAM, RECORD_FIELDS, ErrorStats, FrameRecord,
+                                 ItfAccumulator, MethodScore, masked_psnr_db, summarize)
 from stabilizer.motion import Motion, apply_motion, compensate
 
 
@@ -162,3 +164,69 @@ def test_scoring_ray_cast_frames_with_the_truth_as_estimate():
     assert score.n_scored == 6 and score.failure_rate == 0.0
     assert all(score.errors[axis].max == 0.0 for axis in AXES)
     assert score.itf_db > score.itf_raw_db + 3
+    # The truth as estimate sits exactly on the floor: its EPE is the fit's own.
+    for record in records:
+        assert record.epe_px == pytest.approx(record.truth_epe_px, rel=1e-4, abs=1e-5)
+        assert record.epe_rms_px == pytest.approx(record.truth_residual_px, rel=1e-4, abs=1e-5)
+    assert score.epe.n == 6 and score.epe.mean > 0.0
+    assert score.epe_above_floor_px == pytest.approx(0.0, abs=1e-4)
+
+
+# --------------------------------------------------------------------------- end-point error
+SHAPE = (144, 176)
+GRID = np.stack([c.ravel() for c in np.mgrid[0:176:4, 0:144:4]], axis=1)
+
+
+def _exact_truth(angle=0.0, dx=0.0, dy=0.0, floor_px=0.0) -> GroundTruth:
+    """An exact truth with points; ``floor_px`` pretends a fit residual (mean and RMS)."""
+    truth = GroundTruth.exact(Motion(angle, dx, dy), GRID, SHAPE)
+    return dataclasses.replace(truth, residual_rms_px=floor_px, residual_mean_px=floor_px)
+
+
+def test_record_holds_the_end_point_errors_of_the_estimate_and_of_the_truth():
+    record = _record(0, "m", Motion(2.0, 4.0, -1.0), _exact_truth(2.0, 1.0, 3.0, floor_px=0.7))
+    assert record.epe_px == pytest.approx(5.0, abs=1e-4)  # a (3, -4) offset
+    assert record.epe_rms_px == pytest.approx(5.0, abs=1e-4)
+    assert record.truth_epe_px == 0.7 and record.truth_residual_px == 0.7
+    # Records keep numbers only, never the truth's points.
+    assert not any(isinstance(value, np.ndarray) for value in dataclasses.asdict(record).values())
+    assert RECORD_FIELDS[-3:] == ("epe_px", "epe_rms_px", "truth_epe_px")
+
+
+@pytest.mark.parametrize("estimate, truth", [
+    (Motion.failed("no_structure"), _exact_truth()),
+    (Motion(1.0, 1.0, 1.0), NO_TRUTH),
+    (Motion(1.0, 1.0, 1.0), _truth()),  # a truth without correspondences
+])
+def test_end_point_error_is_nan_without_estimate_truth_or_points(estimate, truth):
+    record = _record(0, "m", estimate, truth)
+    assert math.isnan(record.epe_px) and math.isnan(record.epe_rms_px)
+    assert not record.epe_scored
+
+
+def test_summary_has_epe_statistics_and_the_floor_over_the_same_frames():
+    records = [
+        _record(0, "a", Motion(0.0, 3.0, 4.0), _exact_truth(floor_px=1.0), cycle=0),
+        _record(1, "a", Motion(0.0, 1.0, 0.0), _exact_truth(floor_px=0.5), cycle=0),
+        # Left out of EPE and floor alike: no estimate; no truth.
+        _record(2, "a", Motion.failed("no_structure"), _exact_truth(floor_px=9.0), cycle=1),
+        _record(3, "a", Motion(0.0, 0.0, 0.0), NO_TRUTH, cycle=1),
+    ]
+    summary = summarize(records)
+    score = summary.run["a"]
+    assert score.epe.n == 2 and score.epe.mean == pytest.approx(3.0, abs=1e-4)
+    assert score.epe.max == pytest.approx(5.0, abs=1e-4)
+    assert score.epe.variance == pytest.approx(4.0, abs=1e-3)
+    assert score.epe_floor_px == 0.75
+    assert score.epe_above_floor_px == pytest.approx(2.25, abs=1e-4)
+    assert summary.cycles[1]["a"].epe.n == 0 and math.isnan(summary.cycles[1]["a"].epe_floor_px)
+    restored = MethodScore.from_dict(json.loads(json.dumps(summary.to_dict()["run"]["a"])))
+    assert restored.epe == score.epe and restored.epe_floor_px == score.epe_floor_px
+
+
+def test_a_score_written_before_the_end_point_error_loads_with_nan_epe():
+    data = summarize([_record(0, "a", Motion(1.0, 0.0, 0.0), _truth())]).to_dict()["run"]["a"]
+    del data["epe"], data["epe_floor_px"]
+    score = MethodScore.from_dict(data)
+    assert score.epe.n == 0 and math.isnan(score.epe.mean) and math.isnan(score.epe_floor_px)
+    assert score.errors["rotation"].mean == 1.0
