@@ -1,10 +1,11 @@
 """``egostab``: the harness's one console command.
 
-Subcommands: ``run`` a walking scenario, ``ideal`` (the paper's ideal experiment on one image),
-``aggregate`` several runs into one table, ``list`` the shipped scenarios, ``methods`` the
-methods that can be scored (docs/plugins.md), ``bench`` the speed figures, ``gate`` the CI
-regression gate, ``sweep`` many runs in parallel (locally or on Ray).
-Each has ``--help``.
+Subcommands: ``run`` a walking scenario, ``record`` it as a sequence folder, ``score`` a
+sequence folder (methods, or estimates written by any program), ``ideal`` (the paper's ideal
+experiment on one image), ``aggregate`` several runs into one table, ``list`` the shipped
+scenarios, ``methods`` the methods that can be scored (docs/plugins.md), ``bench`` the speed
+figures, ``gate`` the CI regression gate, ``sweep`` many runs in parallel (locally or on Ray),
+``suite`` held-out sequences with confidence intervals (docs/suites.md). Each has ``--help``.
 """
 
 from __future__ import annotations
@@ -14,9 +15,12 @@ import sys
 from pathlib import Path
 
 from scenarios import DEFAULT_SCENARIO
+from sim.harness.suite.command import add_suite_parser
 
 #: Where runs write unless told otherwise: results/<scenario name>/.
 DEFAULT_RESULTS = Path("results")
+#: Where `record` writes unless told otherwise: sequences/<scenario name>/.
+DEFAULT_SEQUENCES = Path("sequences")
 
 
 def _methods(text: str) -> tuple[str, ...]:
@@ -58,6 +62,54 @@ def _cmd_run(args: argparse.Namespace) -> int:
     metrics = run(RunConfig(scenario=args.scenario, out_dir=str(out_dir), methods=args.methods,
                             record=not args.no_record, max_frames=args.max_frames,
                             seed=args.seed, progress=not args.quiet))
+    print(terminal_summary(metrics, out_dir))
+    if metrics["run"].get("message"):
+        print(f"Note: {metrics['run']['message']}")
+    return {"complete": 0, "fell": 0, "interrupted": 130}.get(metrics["status"], 1)
+
+
+def _cmd_record(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
+    from sim.harness.runner import RecordConfig, record, scenario_name
+    from sim.harness.scenario import load_scenario
+
+    load_scenario(args.scenario)  # a bad scenario is reported before any folder is made
+    out_dir = prepare_output_dir(args.out or DEFAULT_SEQUENCES / scenario_name(args.scenario))
+    header = record(RecordConfig(scenario=args.scenario, out_dir=str(out_dir),
+                                 max_frames=args.max_frames, seed=args.seed,
+                                 progress=not args.quiet))
+    print(f"sequence folder: {out_dir} ({header['frames']} frames, {header['ended']})")
+    if header["message"]:
+        print(f"Note: {header['message']}")
+    return 130 if header["ended"] == "interrupted" else 0
+
+
+def _estimates(text: str) -> tuple[str, str]:
+    from sim.harness.score import parse_estimates_argument
+
+    try:
+        return parse_estimates_argument(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _cmd_score(args: argparse.Namespace) -> int:
+    from sim.harness.atomic import prepare_output_dir
+    from sim.harness.report import terminal_summary
+    from sim.harness.score import ScoreConfig, score
+    from sim.harness.sequence import load_sequence
+
+    estimates = dict(args.estimates or ())
+    if len(estimates) != len(args.estimates or ()):
+        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    if args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: accepted: an integer >= 1")
+    load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
+    out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / Path(args.sequence).name)
+    metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
+                                methods=args.methods, estimates=estimates,
+                                record=not args.no_record, workers=args.workers,
+                                progress=not args.quiet))
     print(terminal_summary(metrics, out_dir))
     if metrics["run"].get("message"):
         print(f"Note: {metrics['run']['message']}")
@@ -174,6 +226,37 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(handler=_cmd_run)
 
+    recorder = commands.add_parser(
+        "record", help="simulate a scenario once and write it as a sequence folder "
+                       "(docs/sequence-format.md)")
+    recorder.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
+                          help=f"scenario name or TOML path (default: {DEFAULT_SCENARIO})")
+    recorder.add_argument("--out", type=Path, default=None,
+                          help="sequence folder (default: sequences/<scenario>)")
+    recorder.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    recorder.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    recorder.add_argument("--quiet", action="store_true", help="no progress bar")
+    recorder.set_defaults(handler=_cmd_record)
+
+    scorer = commands.add_parser(
+        "score", help="score a sequence folder without simulating: methods and/or estimates "
+                      "files; writes the run folder `run` writes")
+    scorer.add_argument("sequence", type=Path, help="sequence folder (`egostab record`)")
+    scorer.add_argument("--methods", type=_method_list, default=None,
+                        help="comma-separated methods, or 'all' (default: the scenario's, or "
+                             "none when --estimates is given)")
+    scorer.add_argument("--estimates", type=_estimates, action="append", default=None,
+                        metavar="[NAME=]FILE.csv",
+                        help="estimates of another program: columns frame, angle_deg, dx, dy "
+                             "[, status]; named NAME or the file's stem; repeatable")
+    scorer.add_argument("--out", type=Path, default=None,
+                        help="run folder (default: results/<sequence folder name>)")
+    scorer.add_argument("--workers", type=int, default=1,
+                        help="processes running the methods, one thread each (default 1)")
+    scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    scorer.add_argument("--quiet", action="store_true", help="no progress bar")
+    scorer.set_defaults(handler=_cmd_score)
+
     ideal = commands.add_parser(
         "ideal", help="the paper's ideal experiment: move one image along a known trajectory")
     ideal.add_argument("image", help="disparity/depth PNG (8- or 16-bit), .npy depth in metres, "
@@ -232,6 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--ray-address", default=None,
                        help="Ray address ('auto' = running cluster; default: start a local one)")
     sweep.set_defaults(handler=_cmd_sweep)
+
+    add_suite_parser(commands, DEFAULT_RESULTS)
     return parser
 
 

@@ -75,8 +75,10 @@ class Correspondences:
 
         The ``motion_matrix`` applied column by column in float32 (about 35 us for 6,000
         points, half of a float64 matrix product; the rounding, ~1e-5 px, is far below any
-        error worth reporting), summed in float64. Element-wise numpy arithmetic, so the
-        result does not depend on memory alignment or threads (OpenCV's ``magnitude`` does).
+        error worth reporting), summed in float64 from first to last. Element-wise arithmetic
+        and a sequential sum (``cumsum``; ``np.sum``'s pairwise SIMD order depends on the
+        buffer's alignment, OpenCV's ``magnitude`` on threads), so the same frame gives the same
+        figure bit for bit in any process.
         """
         matrix = motion_matrix(motion, self.shape).astype(np.float32)
         (x, y), (to_x, to_y) = self.source_px.T, self.target_px.T
@@ -88,10 +90,10 @@ class Correspondences:
             miss -= target
             miss *= miss
             squared += miss
-        total = float(np.sum(squared, dtype=np.float64))
+        total = float(np.cumsum(squared, dtype=np.float64)[-1])
         np.sqrt(squared, out=squared)
         n = len(squared)
-        return float(np.sum(squared, dtype=np.float64)) / n, math.sqrt(total / n)
+        return float(np.cumsum(squared, dtype=np.float64)[-1]) / n, math.sqrt(total / n)
 
 
 @dataclass(frozen=True)

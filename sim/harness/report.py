@@ -300,6 +300,20 @@ def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> P
     return save_figure(figure, path)
 
 
+#: Narrowest range a histogram spans: equal errors (an estimates file with a constant offset)
+#: would otherwise ask numpy for more bins than floats exist in their range.
+MIN_HISTOGRAM_RANGE = 1e-3
+MAX_HISTOGRAM_BINS = 100
+
+
+def _shared_bins(values: np.ndarray) -> np.ndarray:
+    """Bin edges for all methods' errors: the square-root rule, at most MAX_HISTOGRAM_BINS."""
+    low, high = float(values.min()), float(values.max())
+    middle, half = (low + high) / 2, max(high - low, MIN_HISTOGRAM_RANGE) / 2
+    n_bins = min(MAX_HISTOGRAM_BINS, int(np.ceil(np.sqrt(values.size))))
+    return np.linspace(middle - half, middle + half, n_bins + 1)
+
+
 def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
                           methods: Sequence[str]) -> Path:
     """Histograms of the absolute errors per axis, one outline per method, shared bins."""
@@ -313,7 +327,7 @@ def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
             ax.text(0.5, 0.5, "no scored frames", ha="center", va="center",
                     transform=ax.transAxes)
         else:
-            bins = np.histogram_bin_edges(pooled, bins="auto")
+            bins = _shared_bins(pooled)
             for method, values in errors.items():
                 if values.size:
                     ax.hist(values, bins=bins, histtype="step", linewidth=1.5, label=method)

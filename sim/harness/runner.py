@@ -8,6 +8,10 @@ One frame of the loop (docs/design.md, "Data flow of one run"): the robot walks 
 control period by control period, following the scenario's commands; at the SR4000's exposure
 times the sensor renders; the finished Frame is scored against its reference frame (chosen by
 the scenario's reference policy) by the ground truth and by every method; the recorder logs it.
+Every frame passes through the sequence encoding first (sim.harness.sequence), and ``run`` and
+``egostab score`` (sim.harness.score) share one scoring loop, ``score_frames``, fed by a frame
+source: the simulation here, a sequence folder there. ``record`` writes the simulation's
+frames as a sequence folder instead of scoring them.
 A fall, an interrupt (Ctrl-C) or an error ends the run cleanly: the files written describe
 every finished frame and say how the run ended.
 """
@@ -20,6 +24,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
+
+import numpy as np
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
 from sim.harness.methods import Estimator, method_factory
@@ -66,41 +72,6 @@ class RunConfig:
 def scenario_name(scenario: str | os.PathLike) -> str:
     """The run's name for a scenario given by name or path (its file stem)."""
     return Path(scenario).stem
-
-
-class _ReferenceTracker:
-    """Holds the current reference frame and its analysed estimators, per the policy.
-
-    Policies (docs/design.md): ``cycle_start`` = the first frame of each gait cycle; ``previous``
-    = the frame before; ``first`` = the run's first frame. The methods are resolved once, here
-    (sim.harness.methods: built-in, entry point or import path).
-    """
-
-    def __init__(self, policy: str, methods: tuple[str, ...]):
-        self.policy = policy
-        self.methods = methods
-        self.factories = {method: method_factory(method) for method in methods}
-        self.frame = None
-        self.cycle = None
-        self.stabilizers: dict[str, Estimator] = {}
-        self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
-
-    def _needs_new(self, cycle: int) -> bool:
-        return (self.frame is None or self.policy == "previous"
-                or (self.policy == "cycle_start" and cycle != self.cycle))
-
-    def reference_for(self, frame, cycle: int, previous_frame):
-        """The reference of ``frame``; analysed once per reference change."""
-        if self._needs_new(cycle):
-            reference = frame if (self.policy != "previous" or previous_frame is None) \
-                else previous_frame
-            self.frame, self.cycle = reference, cycle
-            self.stabilizers = {}
-            for method in self.methods:
-                start = time.perf_counter()
-                self.stabilizers[method] = self.factories[method](reference.disparity8)
-                self.analysis_ms[method].append(1e3 * (time.perf_counter() - start))
-        return self.frame
 
 
 def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0,
@@ -164,87 +135,213 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     return motion, 1e3 * (time.perf_counter() - start)
 
 
+@dataclass(frozen=True)
+class SourceFrame:
+    """One frame as the scorer gets it: decoded as a sequence stores it, with its gait cycle,
+    the robot's torso position (for the recording) and, from the simulator, the stored images."""
+
+    frame: Any
+    gait_cycle: int
+    robot_position: Any
+    encoded: Any = None
+
+
+class SimulatedFrames:
+    """Frames of a walking simulation, each passed through the sequence encoding.
+
+    A context manager (it holds the renderer); iterate inside it. ``fall`` is the robot's fall
+    once it happened (checked after each frame), ``sim_time_s`` the simulated time so far,
+    ``intrinsics`` the camera's pinhole.
+    """
+
+    def __init__(self, scenario, n_frames: int):
+        self.scenario, self.n_frames = scenario, n_frames
+        self.robot = scenario_robot(scenario)
+        self.sensor = None
+
+    def __enter__(self) -> "SimulatedFrames":
+        self.sensor = open_sensor(self.scenario, self.robot).__enter__()
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.sensor.__exit__(*exc_info)
+
+    @property
+    def intrinsics(self):
+        return self.sensor.intrinsics
+
+    @property
+    def fall(self):
+        return self.robot.fall
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.robot.time
+
+    def __iter__(self):
+        from sim.harness.sequence import decoded_frame, encode_frame
+
+        no_surface_m = self.sensor.tof.no_surface_depth_m
+        for frame in walk_frames(self.scenario, self.robot, self.sensor, self.n_frames):
+            encoded = encode_frame(frame, no_surface_m)
+            yield SourceFrame(
+                decoded_frame(frame.index, frame.time_s, frame.cam_pos, frame.cam_mat, encoded),
+                self.robot.gait_cycle, self.robot.torso_pose()[0], encoded)
+
+
+class ReferencePolicy:
+    """Chooses each frame's reference (docs/design.md): ``cycle_start`` = the first frame of
+    each gait cycle; ``previous`` = the frame before; ``first`` = the first frame."""
+
+    def __init__(self, policy: str):
+        self.policy = policy
+        self.frame = self.cycle = self.previous = None
+
+    def reference_for(self, frame, cycle: int):
+        """The reference of ``frame`` (frames come in order)."""
+        if (self.frame is None or self.policy == "previous"
+                or (self.policy == "cycle_start" and cycle != self.cycle)):
+            self.frame = frame if (self.policy != "previous" or self.previous is None) \
+                else self.previous
+            self.cycle = cycle
+        self.previous = frame
+        return self.frame
+
+
+def frame_truth(reference, frame, intrinsics):
+    """The ground truth of ``frame`` against ``reference`` from their exact depth."""
+    from sim.harness.ground_truth import ground_truth
+
+    return ground_truth(reference, frame, intrinsics, reference_depth_m=reference.true_depth_m,
+                        current_depth_m=frame.true_depth_m)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One method's result for one frame: the motion, the milliseconds it took (NaN when
+    unknown) and the frame compensated by it."""
+
+    motion: Motion
+    ms: float
+    compensated: Any
+
+
+class MethodEstimation:
+    """A method's estimates in this process, analysing each reference once."""
+
+    def __init__(self, method: str):
+        self.factory = method_factory(method)
+        self.reference_index = None
+        self.stabilizer: Estimator | None = None
+        self.analysis_ms: list[float] = []
+
+    def estimate(self, reference, frame) -> Estimate:
+        if reference.index != self.reference_index:
+            start = time.perf_counter()
+            self.stabilizer = self.factory(reference.disparity8)
+            self.analysis_ms.append(1e3 * (time.perf_counter() - start))
+            self.reference_index = reference.index
+        motion, ms = timed_estimate(self.stabilizer, frame.disparity8)
+        return Estimate(motion, ms, compensate(frame.disparity8, motion))
+
+
 def run(config: RunConfig) -> dict:
     """Run the scenario of ``config``; return the metrics dict also written to metrics.json.
 
-    The run's status is "complete", "fell" (the robot fell: frames up to the fall are
-    scored), "interrupted" (Ctrl-C, SIGTERM or SIGHUP; the message says which) or "error" (an
-    exception, re-raised after the files of the finished frames are written). Until the final
-    write, metrics.json says "incomplete" (written at the start and at every checkpoint); it is
-    written last, so a second interrupt during the final write leaves the folder saying so.
+    Every frame goes through the sequence encoding before it is scored (sim.harness.sequence),
+    so ``egostab score`` of a recorded sequence gives the same figures. The run's status is
+    "complete", "fell" (the robot fell: frames up to the fall are scored), "interrupted"
+    (Ctrl-C, SIGTERM or SIGHUP; the message says which) or "error" (an exception, re-raised
+    after the files of the finished frames are written). Until the final write, metrics.json
+    says "incomplete" (written at the start and at every checkpoint); it is written last, so
+    a second interrupt during the final write leaves the folder saying so.
     """
-    # Imports here keep `import sim.harness.runner` light for process pools that only pickle configs.
+    scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
+    methods = tuple(config.methods or scenario.evaluation.methods)
+    source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
+    scoring = Scoring(scenario, methods, Path(config.out_dir),
+                      record=config.record and scenario.recording.enabled,
+                      meta={"max_frames": config.max_frames})
+    estimations = {method: MethodEstimation(method) for method in methods}
+    return score_frames(source, scoring, estimations, config.progress)
+
+
+def _configured_scenario(scenario: str, seed: int | None, overrides: Mapping[str, Any]):
+    # Imported here to keep `import sim.harness.runner` light for pools that pickle configs.
     from sim.harness.scenario import load_scenario
 
-    overrides = dict(config.overrides)
-    if config.seed is not None:
-        overrides["seed"] = config.seed
-    scenario = load_scenario(config.scenario, overrides)
-    methods = tuple(config.methods or scenario.evaluation.methods)
-    if config.max_frames is not None and config.max_frames < 1:
-        raise ValueError(f"max_frames must be >= 1 or None; got {config.max_frames}")
-    out_dir = Path(config.out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    overrides = dict(overrides)
+    if seed is not None:
+        overrides["seed"] = seed
+    return load_scenario(scenario, overrides)
 
-    state = _RunState(scenario, methods, out_dir, config.max_frames,
-                      record=config.record and scenario.recording.enabled)
+
+def frame_count(scenario, max_frames: int | None) -> int:
+    """Frames of the scenario's duration at its frame rate, at most ``max_frames``."""
+    if max_frames is not None and max_frames < 1:
+        raise ValueError(f"max_frames must be >= 1 or None; got {max_frames}")
+    n_frames = int(math.floor(scenario.duration_s * scenario.sensor.fps))
+    return n_frames if max_frames is None else min(n_frames, max_frames)
+
+
+def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
+                 progress: bool) -> dict:
+    """The one scoring loop of ``run`` and ``score``: every frame of ``source`` (a context
+    manager yielding SourceFrame, with ``fall``, ``sim_time_s`` and ``intrinsics``) is scored
+    by ``estimations`` (method -> object with ``estimate(reference, frame) -> Estimate`` and
+    ``analysis_ms``); returns metrics.json's content."""
     with stop_signals_interrupt():
-        state.start()
-        progress = _progress_bar(state.n_frames, scenario.name, config.progress)
+        scoring.start()
+        bar = _progress_bar(source.n_frames, scoring.scenario.name, progress)
         try:
-            with open_sensor(scenario, state.robot) as sensor:
-                for frame in walk_frames(scenario, state.robot, sensor, state.n_frames):
-                    state.score_frame(frame)
-                    progress.update(1)
-                    if state.robot.fall is not None:
-                        state.end_with_fall()
+            with source:
+                for item in source:
+                    scoring.score_frame(item, estimations, source.intrinsics)
+                    bar.update(1)
+                    if source.fall is not None:
+                        scoring.end_with_fall(source.fall)
                         break
-                    if (frame.index + 1) % CHECKPOINT_FRAMES == 0:
-                        state.write(final=False)
+                    if (item.frame.index + 1) % CHECKPOINT_FRAMES == 0:
+                        scoring.write(final=False)
         except KeyboardInterrupt as interrupt:
-            state.status, state.message = INTERRUPTED, interrupt_reason(interrupt)
+            scoring.status, scoring.message = INTERRUPTED, interrupt_reason(interrupt)
         except Exception as error:
-            state.status, state.message = ERROR, f"{type(error).__name__}: {error}"
+            scoring.status, scoring.message = ERROR, f"{type(error).__name__}: {error}"
             raise
         finally:
-            progress.close()
-            metrics = state.finish()
+            bar.close()
+            metrics = scoring.finish(source.sim_time_s, estimations)
     return metrics
 
 
-class _RunState:
-    """What one run has done so far, and its files.
+class Scoring:
+    """What a run (or a score of a sequence) has done so far, and its run folder.
 
-    It holds the robot, the scored records, the ITF streams, the reference tracker, the
-    recorder and how the run is ending (``status``, ``message``); ``meta`` becomes
-    metrics.json's "run" section. ``start`` starts the wall clock and the recording,
-    ``score_frame`` scores one frame, ``write`` writes the run folder (a cheap checkpoint while
-    running, or the final files with plots and recording), ``finish`` closes the recording and
-    writes the final files with how the run ended and its timing.
+    It holds the scored records, the ITF streams, the reference policy, the recorder and how
+    the run is ending (``status``, ``message``); ``meta`` becomes metrics.json's "run" section.
+    ``start`` starts the wall clock and the recording, ``score_frame`` scores one frame,
+    ``write`` writes the run folder (a cheap checkpoint while running, or the final files with
+    plots and recording), ``finish`` closes the recording and writes the final files with how
+    the run ended and its timing.
     """
 
-    def __init__(self, scenario, methods: tuple[str, ...], out_dir: Path,
-                 max_frames: int | None, record: bool):
+    def __init__(self, scenario, methods: tuple[str, ...], out_dir: Path, record: bool,
+                 meta: Mapping[str, Any]):
         from sim.harness.scoring import ItfAccumulator
 
         self.scenario, self.methods, self.out_dir = scenario, methods, out_dir
-        self.robot = scenario_robot(scenario)
+        out_dir.mkdir(parents=True, exist_ok=True)
         self.recording_path = out_dir / RECORDING_RRD if record else None
         self.scenario_dict = scenario.to_dict()
         self.meta: dict[str, Any] = {
             "seed": scenario.seed, "methods": list(methods),
             "reference_policy": scenario.evaluation.reference, "scene": scenario.scene,
-            "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps,
-            "max_frames": max_frames,
+            "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps, **meta,
         }
         self.records: list = []
         self.itf = ItfAccumulator()
-        self.tracker = _ReferenceTracker(scenario.evaluation.reference, methods)
-        self.n_frames = int(math.floor(scenario.duration_s * scenario.sensor.fps))
-        if max_frames is not None:
-            self.n_frames = min(self.n_frames, max_frames)
+        self.references = ReferencePolicy(scenario.evaluation.reference)
         self.status, self.message = COMPLETE, ""
-        self.previous_frame = None
         self.recorder = None
         self.wall_start = math.nan
 
@@ -262,37 +359,32 @@ class _RunState:
                 frame_stride=self.scenario.recording.frame_stride,
                 recording_id=f"{self.scenario.name}-seed{self.scenario.seed}")
 
-    def score_frame(self, frame) -> None:
-        """Score ``frame`` against its reference with the truth and every method; log it."""
-        from sim.harness.ground_truth import ground_truth
+    def score_frame(self, item: SourceFrame, estimations: Mapping[str, Any], intrinsics) -> None:
+        """Score one frame against its reference with the truth and every method; log it."""
         from sim.harness.scoring import RAW_STREAM, FrameRecord
 
-        cycle = self.robot.gait_cycle
-        reference = self.tracker.reference_for(frame, cycle, self.previous_frame)
-        truth = ground_truth(reference, frame, reference_depth_m=reference.true_depth_m,
-                             current_depth_m=frame.true_depth_m)
-        estimates, compensated = {}, {}
-        for method in self.methods:
-            motion, ms = timed_estimate(self.tracker.stabilizers[method], frame.disparity8)
-            estimates[method] = motion
-            compensated[method] = compensate(frame.disparity8, motion)
+        frame, cycle = item.frame, item.gait_cycle
+        reference = self.references.reference_for(frame, cycle)
+        truth = frame_truth(reference, frame, intrinsics)
+        estimates = {method: estimations[method].estimate(reference, frame)
+                     for method in self.methods}
+        for method, estimate in estimates.items():
             self.records.append(FrameRecord.score(
                 frame_index=frame.index, time_s=frame.time_s, gait_cycle=cycle,
-                reference_index=reference.index, method=method, estimate=motion, truth=truth,
-                ms=ms))
-            self.itf.add(method, compensated[method], gait_cycle=cycle,
+                reference_index=reference.index, method=method, estimate=estimate.motion,
+                truth=truth, ms=estimate.ms))
+            self.itf.add(method, estimate.compensated, gait_cycle=cycle,
                          reference_index=reference.index)
         self.itf.add(RAW_STREAM, frame.disparity8, gait_cycle=cycle,
                      reference_index=reference.index)
         if self.recorder is not None:
-            self.recorder.log_frame(frame, estimates=estimates, truth=truth,
-                                    compensated=compensated,
-                                    robot_position=self.robot.torso_pose()[0])
-        self.previous_frame = frame
+            self.recorder.log_frame(
+                frame, estimates={m: e.motion for m, e in estimates.items()}, truth=truth,
+                compensated={m: e.compensated for m, e in estimates.items()},
+                robot_position=item.robot_position)
 
-    def end_with_fall(self) -> None:
-        """Mark the run as ended by the robot's fall."""
-        fall = self.robot.fall
+    def end_with_fall(self, fall) -> None:
+        """Mark the run as ended by the robot's fall (anything with ``time_s`` and ``reason``)."""
         self.status = FELL
         self.message = f"the robot fell at {fall.time_s:.2f} s ({fall.reason})"
         self.meta["fall"] = {"time_s": fall.time_s, "reason": fall.reason}
@@ -314,7 +406,7 @@ class _RunState:
             recording=self.recording_path if final else None)
         return files.metrics
 
-    def finish(self) -> dict:
+    def finish(self, sim_time_s: float, estimations: Mapping[str, Any]) -> dict:
         """Close the recording; add how the run ended and its timing to ``meta``; write the
         final files and return metrics.json's content."""
         if self.recorder is not None:
@@ -322,13 +414,82 @@ class _RunState:
                 self.recorder.log_event(self.message, level="WARN")
             self.recorder.close()
         wall_s = time.perf_counter() - self.wall_start
+        analysis_ms = {method: estimations[method].analysis_ms for method in self.methods}
         self.meta.update({
-            "message": self.message, "sim_time_s": self.robot.time, "wall_time_s": wall_s,
-            "realtime_factor": self.robot.time / wall_s if wall_s > 0 else math.nan,
+            "message": self.message, "sim_time_s": sim_time_s, "wall_time_s": wall_s,
+            "realtime_factor": sim_time_s / wall_s if wall_s > 0 else math.nan,
             "reference_analysis_ms": {m: (sum(v) / len(v) if v else math.nan)
-                                      for m, v in self.tracker.analysis_ms.items()},
+                                      for m, v in analysis_ms.items()},
         })
         return self.write(final=True)
+
+
+@dataclass(frozen=True)
+class RecordConfig:
+    """What to record and where: the scenario (name or path), the sequence folder, and as for
+    RunConfig ``max_frames``, ``seed``, ``overrides`` and ``progress``."""
+
+    scenario: str
+    out_dir: str
+    max_frames: int | None = None
+    seed: int | None = None
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    progress: bool = False
+
+
+def record(config: RecordConfig) -> dict:
+    """Simulate the scenario once and write its sequence folder; return sequence.json's content.
+
+    The recording ends "complete", "fell" (the frames up to the fall are kept) or "interrupted"
+    (Ctrl-C, SIGTERM or SIGHUP); an error leaves sequence.json saying "incomplete" and is
+    re-raised.
+    """
+    from sim.harness.provenance import provenance
+    from sim.harness.sequence import (DEPTH_UNIT_M, EXACT_DEPTH_UNIT_M, RecordedFall,
+                                      SequenceWriter, TruthRow)
+
+    scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
+    source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
+    references = ReferencePolicy(scenario.evaluation.reference)
+    scenario_dict = {k: v for k, v in scenario.to_dict().items() if k != "source"}
+    ended, message, fall, writer = COMPLETE, "", None, None
+    with stop_signals_interrupt():
+        bar = _progress_bar(source.n_frames, scenario.name, config.progress)
+        try:
+            with source:
+                intrinsics = source.intrinsics
+                writer = SequenceWriter(config.out_dir, {
+                    "scenario": scenario_dict, "seed": scenario.seed, "fps": scenario.sensor.fps,
+                    "intrinsics": {"fx": float(intrinsics.fx), "fy": float(intrinsics.fy),
+                                   "cx": float(intrinsics.cx), "cy": float(intrinsics.cy),
+                                   "width": int(intrinsics.width),
+                                   "height": int(intrinsics.height)},
+                    "depth_unit_m": DEPTH_UNIT_M, "exact_depth_unit_m": EXACT_DEPTH_UNIT_M,
+                    "reference_policy": scenario.evaluation.reference,
+                    "provenance": provenance()})
+                for item in source:
+                    frame = item.frame
+                    reference = references.reference_for(frame, item.gait_cycle)
+                    truth = frame_truth(reference, frame, intrinsics)
+                    writer.add(item.encoded, TruthRow(
+                        frame.index, frame.time_s, reference.index, item.gait_cycle,
+                        *truth.motion.as_tuple(), truth.motion.status, truth.residual_rms_px,
+                        truth.n_points, tuple(frame.cam_pos.tolist()),
+                        tuple(tuple(row) for row in frame.cam_mat.tolist()),
+                        tuple(np.asarray(item.robot_position, dtype=float).tolist())))
+                    bar.update(1)
+                    if source.fall is not None:
+                        ended = FELL
+                        fall = RecordedFall(source.fall.time_s, source.fall.reason)
+                        message = f"the robot fell at {fall.time_s:.2f} s ({fall.reason})"
+                        break
+        except KeyboardInterrupt as interrupt:
+            ended, message = INTERRUPTED, interrupt_reason(interrupt)
+        finally:
+            bar.close()
+        if writer is None:  # interrupted before the first frame: nothing to keep
+            raise KeyboardInterrupt(message)
+        return writer.close(ended, message, fall, sim_time_s=source.sim_time_s)
 
 
 def _progress_bar(total: int, name: str, enabled: bool):

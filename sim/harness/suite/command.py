@@ -6,12 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
-#: Where suites write unless told otherwise: results/suites/<name>/.
-DEFAULT_RESULTS = Path("results")
 
-
-def add_suite_parser(commands) -> argparse.ArgumentParser:
-    """Add the ``suite`` subcommand to ``commands`` (an argparse subparsers object)."""
+def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
+    """Add the ``suite`` subcommand to ``commands`` (an argparse subparsers object); suites
+    write to ``results/suites/<name>`` unless ``--out`` says otherwise."""
     suite = commands.add_parser(
         "suite", help="run a suite file: many sequences, means with 95%% bootstrap intervals")
     suite.add_argument("suite_file", type=Path,
@@ -25,7 +23,7 @@ def add_suite_parser(commands) -> argparse.ArgumentParser:
     suite.add_argument("--ray-address", default=None,
                        help="Ray cluster address ('auto', 'ray://host:10001'; default: "
                             "$RAY_ADDRESS or a local instance)")
-    suite.set_defaults(handler=run_suite_command)
+    suite.set_defaults(handler=run_suite_command, results=results)
     return suite
 
 
@@ -36,7 +34,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     from sim.harness.suite.spec import load_suite
 
     spec = load_suite(args.suite_file)
-    out_dir = prepare_output_dir(args.out or default_suite_dir(spec, DEFAULT_RESULTS))
+    out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
     try:
         result = run_suite(spec, out_dir, backend="ray" if args.ray else "local",
                            workers=args.workers, ray_address=args.ray_address, progress=True)

@@ -14,7 +14,8 @@ from sim.harness.scenario import list_scenarios
 from stabilizer import depth_to_disparity
 from stabilizer.testing import make_depth_scene
 
-SUBCOMMANDS = ("run", "ideal", "aggregate", "list", "methods", "bench", "gate", "sweep")
+SUBCOMMANDS = ("run", "record", "score", "ideal", "aggregate", "list", "methods", "bench", "gate",
+               "sweep", "suite")
 
 
 @pytest.mark.parametrize("argv", [[]] + [[name] for name in SUBCOMMANDS])
@@ -170,3 +171,12 @@ def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):
     assert resized.size <= MAX_IMAGE_PIXELS and resized.shape[1] / resized.shape[0] == \
         pytest.approx(1760 / 1440, rel=0.01)
     assert set(np.unique(resized)) <= set(np.unique(image))  # nothing interpolated
+
+
+def test_score_of_a_folder_that_is_no_sequence_is_one_line_and_status_2(tmp_path, capsys):
+    (tmp_path / "not_a_sequence").mkdir()
+    assert main(["score", str(tmp_path / "not_a_sequence"), "--out", str(tmp_path / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "sequence.json" in err and "\n" not in err
+    assert not (tmp_path / "out").exists()

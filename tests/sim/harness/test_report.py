@@ -273,3 +273,13 @@ def test_summary_survives_the_json_round_trip(run):
     assert restored.methods == summary.methods and restored.n_frames == summary.n_frames
     assert restored.run["sift"].errors == summary.run["sift"].errors
     assert restored.cycles[1]["t2fuzzy"].n_scored == summary.cycles[1]["t2fuzzy"].n_scored
+
+
+def test_equal_errors_still_plot(run, tmp_path):
+    from sim.harness.report import plot_error_histograms
+
+    _, _, records, _ = run
+    constant = [replace(record, err_angle_deg=1.0, err_dx_px=2.0, err_dy_px=5.0 + 1e-14 * i)
+                for i, record in enumerate(records)]
+    path = plot_error_histograms(tmp_path / "h.png", constant, [records[0].method])
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -7,7 +7,6 @@ real metrics.json layout. The end-to-end test runs the shipped CI suite for real
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
@@ -21,7 +20,7 @@ from sim.harness.report import read_metrics, write_run_outputs
 from sim.harness.scenario import load_scenario
 from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.suite import (COLUMNS, FIGURES, TABLE_CSV, TABLE_JSON, TABLE_MD, SuiteError,
-                               add_suite_parser, load_suite, plan_suite, run_suite,
+                               load_suite, plan_suite, run_suite,
                                suite_from_dict, write_suite_outputs)
 from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep import RunOutcome, load_sweep
@@ -289,10 +288,9 @@ def test_bad_backend_and_workers_are_refused(tmp_path):
 # --- The CI suite, for real ------------------------------------------------------------------
 
 def run_command(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="egostab")
-    add_suite_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    return args.handler(args)
+    from sim.harness.cli import main
+
+    return main(argv)
 
 
 def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):

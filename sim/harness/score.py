@@ -1,0 +1,349 @@
+"""Score a recorded sequence without simulating: ``egostab score`` (docs/sequence-format.md).
+
+The frames come from the sequence folder, decoded exactly as ``egostab run`` decodes the frames
+it simulates, and go through the runner's one scoring loop (``sim.harness.runner.score_frames``),
+so the run folder equals the one ``egostab run`` writes for the same scenario and seed (except
+the timings). Methods run in this process or in ``workers`` spawn processes, each on one OpenCV
+and one BLAS thread; the work is split by method and by chunks of frames sharing a reference,
+so each reference is analysed once per chunk, and merged in frame order. Estimates written by
+any program (``estimates_file``) are scored beside them.
+
+This module imports numpy and OpenCV only inside functions: a worker process sets its thread
+limits before they load.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+#: Environment variables that set a BLAS / OpenMP library's thread count.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                    "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
+#: Chunks per worker: enough for a balanced load, few enough that references are analysed
+#: once per chunk, not once per frame.
+CHUNKS_PER_WORKER = 4
+#: Columns of an estimates file; "status" is optional (default "ok").
+ESTIMATE_COLUMNS = ("frame", "angle_deg", "dx", "dy")
+#: Status of a frame an estimates file does not mention.
+MISSING = "missing"
+
+
+@dataclass(frozen=True)
+class ScoreConfig:
+    """What to score and where to write it.
+
+    Attributes:
+        sequence: a sequence folder (``egostab record``).
+        out_dir: run folder; created; files inside are replaced atomically.
+        methods: methods to run; None = the scenario's, unless estimate files are given
+            (then only those are scored).
+        estimates: method name -> CSV file of estimates made by another program.
+        record: write ``recording.rrd`` if the scenario's ``[recording] enabled`` allows it.
+        workers: processes that run the methods (1 = this process).
+        progress: show a progress bar.
+    """
+
+    sequence: str
+    out_dir: str
+    methods: tuple[str, ...] | None = None
+    estimates: Mapping[str, str] = field(default_factory=dict)
+    record: bool = True
+    workers: int = 1
+    progress: bool = False
+
+
+def score(config: ScoreConfig) -> dict:
+    """Score the sequence of ``config``; return the metrics dict also written to metrics.json.
+
+    The status is as for ``sim.harness.runner.run``: "complete", "fell" (the recording ended
+    with the robot's fall), "interrupted" or "error".
+    """
+    from sim.harness.runner import Scoring, score_frames
+    from sim.harness.scenario import scenario_from_dict
+    from sim.harness.sequence import SEQUENCE_JSON, load_sequence
+
+    if isinstance(config.workers, bool) or not isinstance(config.workers, int) \
+            or config.workers < 1:
+        raise ValueError(f"workers must be an integer >= 1; got {config.workers!r}")
+    sequence = load_sequence(config.sequence)
+    scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
+    file_methods = {name: FileEstimation(path, sequence) for name, path in
+                    config.estimates.items()}
+    methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
+    clash = sorted(set(methods) & set(file_methods))
+    if clash:
+        raise ValueError(f"{', '.join(clash)} named both as a method and as an estimates file; "
+                         f"accepted: each name once")
+    scoring = Scoring(scenario, methods + tuple(file_methods), Path(config.out_dir),
+                      record=config.record and scenario.recording.enabled,
+                      meta={"sequence": {"path": str(sequence.path), "ended": sequence.ended,
+                                         "message": sequence.header.get("message", "")},
+                            "estimates": {name: str(path)
+                                          for name, path in config.estimates.items()},
+                            "workers": config.workers})
+    with _method_estimations(sequence, methods, config.workers) as estimations:
+        return score_frames(SequenceFrames(sequence), scoring, {**estimations, **file_methods},
+                            config.progress)
+
+
+class SequenceFrames:
+    """The frames of a loaded sequence as the scoring loop wants them (see SimulatedFrames)."""
+
+    def __init__(self, sequence):
+        self.sequence = sequence
+        self.n_frames = sequence.n_frames
+        self.intrinsics = sequence.intrinsics
+        self._done = 0
+
+    def __enter__(self) -> "SequenceFrames":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        pass
+
+    @property
+    def fall(self):
+        """The recording's fall, once its last frame has been given."""
+        return self.sequence.fall if self._done == self.n_frames else None
+
+    @property
+    def sim_time_s(self) -> float:
+        if self._done == self.n_frames and self.sequence.header.get("sim_time_s") is not None:
+            return float(self.sequence.header["sim_time_s"])
+        return self.sequence.rows[self._done - 1].time_s if self._done else 0.0
+
+    def __iter__(self):
+        from sim.harness.runner import SourceFrame
+
+        for index in range(self.n_frames):
+            row = self.sequence.rows[index]
+            frame = self.sequence.frame(index)
+            self._done = index + 1
+            yield SourceFrame(frame, row.gait_cycle, row.torso)
+
+
+def _check_reference(sequence, reference, frame) -> None:
+    expected = sequence.rows[frame.index].reference_frame
+    if reference.index != expected:
+        raise ValueError(f"{sequence.path / 'truth.csv'}: frame {frame.index}: reference_frame "
+                         f"is {expected} but the reference policy gives {reference.index}; "
+                         f"accepted: the truth.csv `egostab record` wrote")
+
+
+class FileEstimation:
+    """Estimates written by another program, one CSV row per frame (docs/sequence-format.md).
+
+    Columns ``frame, angle_deg, dx, dy`` and optionally ``status`` (empty = "ok"); the motion
+    of each frame against its reference_frame in truth.csv, in the README's Motion convention.
+    A frame without a row is a failure with status "missing". Values of a row whose status is
+    not "ok" are ignored. The time per frame is unknown (NaN).
+    """
+
+    def __init__(self, path: str | os.PathLike, sequence):
+        self.path, self.sequence = Path(path), sequence
+        self.motions = read_estimates(self.path, sequence.n_frames)
+        self.analysis_ms: list[float] = []
+
+    def estimate(self, reference, frame):
+        from sim.harness.runner import Estimate
+        from stabilizer import compensate
+        from stabilizer.motion import Motion
+
+        _check_reference(self.sequence, reference, frame)
+        motion = self.motions.get(frame.index) or Motion.failed(MISSING)
+        return Estimate(motion, math.nan, compensate(frame.disparity8, motion))
+
+
+def read_estimates(path: Path, n_frames: int) -> dict:
+    """Frame -> Motion of an estimates file; a bad row is refused with its line number."""
+    import csv
+
+    from sim.harness.validation import FileValueError
+    from stabilizer.motion import OK, Motion
+
+    motions: dict[int, Motion] = {}
+    with open(path, newline="", encoding="utf-8") as handle:
+        reader = csv.DictReader(handle)
+        header = [name.strip() for name in (reader.fieldnames or ())]
+        missing = [name for name in ESTIMATE_COLUMNS if name not in header]
+        if missing:
+            raise FileValueError(f"{path}:1", "header", f"lacks column(s) {', '.join(missing)}",
+                                 f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status")
+        reader.fieldnames = header
+        for line, cells in enumerate(reader, start=2):
+            where = f"{path}:{line}"
+
+            def number(name: str) -> float:
+                text = (cells.get(name) or "").strip()
+                try:
+                    return float(text)
+                except ValueError:
+                    raise FileValueError(where, name, f"{text!r} is not a number",
+                                         "a number") from None
+
+            text = (cells.get("frame") or "").strip()
+            if not text.isdigit():
+                raise FileValueError(where, "frame", f"{text!r} is not a frame number",
+                                     f"an integer from 0 to {n_frames - 1}")
+            frame = int(text)
+            if frame >= n_frames:
+                raise FileValueError(where, "frame", f"{frame} is not a frame of the sequence",
+                                     f"an integer from 0 to {n_frames - 1}")
+            if frame in motions:
+                raise FileValueError(where, "frame", f"{frame} appears a second time",
+                                     "each frame at most once")
+            status = (cells.get("status") or "").strip() or OK
+            if status == OK:
+                values = tuple(number(name) for name in ESTIMATE_COLUMNS[1:])
+                bad = [n for n, v in zip(ESTIMATE_COLUMNS[1:], values) if not math.isfinite(v)]
+                if bad:
+                    raise FileValueError(where, bad[0], "is not finite",
+                                         "a finite number when the status is ok")
+                motions[frame] = Motion(*values)
+            else:
+                motions[frame] = Motion.failed(status)
+    return motions
+
+
+def parse_estimates_argument(text: str) -> tuple[str, str]:
+    """``NAME=FILE.csv`` or ``FILE.csv`` (named by its stem) -> (name, file)."""
+    name, separator, path = text.partition("=")
+    if not separator:
+        name, path = Path(text).stem, text
+    name, path = name.strip(), path.strip()
+    if not name or not path:
+        raise ValueError(f"--estimates {text!r}: accepted: FILE.csv or NAME=FILE.csv")
+    return name, path
+
+
+# -- methods: in this process, or in worker processes -------------------------------------------
+
+@contextmanager
+def _method_estimations(sequence, methods: tuple[str, ...], workers: int) -> Iterator[dict]:
+    from sim.harness.runner import MethodEstimation
+
+    if workers == 1 or not methods:
+        yield {method: MethodEstimation(method) for method in methods}
+        return
+    pool = _EstimationPool(sequence, methods, workers)
+    try:
+        yield {method: _PooledMethod(pool, method) for method in methods}
+    finally:
+        pool.close()
+
+
+def reference_chunks(reference_frames: list[int], n_chunks: int) -> list[list[int]]:
+    """Frame indices split into about ``n_chunks`` runs of consecutive frames, cut only where
+    the reference changes (so a chunk analyses each of its references once)."""
+    groups: list[list[int]] = []
+    for index, reference in enumerate(reference_frames):
+        if groups and reference_frames[groups[-1][0]] == reference:
+            groups[-1].append(index)
+        else:
+            groups.append([index])
+    target = max(1, math.ceil(len(reference_frames) / max(n_chunks, 1)))
+    chunks: list[list[int]] = []
+    for group in groups:
+        if chunks and len(chunks[-1]) < target:
+            chunks[-1].extend(group)
+        else:
+            chunks.append(list(group))
+    return chunks
+
+
+@contextmanager
+def _single_thread_environment() -> Iterator[None]:
+    """One BLAS/OpenMP thread in processes started inside (they read it before any import)."""
+    saved = {name: os.environ.get(name) for name in THREAD_VARIABLES}
+    os.environ.update({name: "1" for name in THREAD_VARIABLES})
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _init_worker() -> None:
+    import signal
+
+    import cv2
+
+    # Ctrl-C reaches the whole process group: the parent ends the work and the workers.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    cv2.setNumThreads(1)
+
+
+_WORKER_SEQUENCES: dict[str, Any] = {}
+
+
+def _estimate_chunk(task: tuple[str, str, list[int]]):
+    """In a worker: one method's estimates of a chunk of frames, and its analysis times."""
+    from sim.harness.runner import MethodEstimation
+    from sim.harness.sequence import load_sequence
+
+    path, method, indices = task
+    if path not in _WORKER_SEQUENCES:
+        _WORKER_SEQUENCES[path] = load_sequence(path)
+    sequence = _WORKER_SEQUENCES[path]
+    estimation = MethodEstimation(method)
+    reference = None
+    estimates = []
+    for index in indices:
+        reference_index = sequence.rows[index].reference_frame
+        if reference is None or reference.index != reference_index:
+            reference = sequence.frame(reference_index, exact=False)
+        estimates.append((index, estimation.estimate(reference,
+                                                     sequence.frame(index, exact=False))))
+    return method, estimates, estimation.analysis_ms
+
+
+class _EstimationPool:
+    """Spawn workers estimating (method, chunk) tasks; results are taken in task order."""
+
+    def __init__(self, sequence, methods: tuple[str, ...], workers: int):
+        import multiprocessing
+
+        self.sequence = sequence
+        chunks = reference_chunks([row.reference_frame for row in sequence.rows],
+                                  workers * CHUNKS_PER_WORKER)
+        tasks = [(str(sequence.path), method, chunk) for chunk in chunks for method in methods]
+        with _single_thread_environment():
+            self.pool = multiprocessing.get_context("spawn").Pool(
+                min(workers, len(tasks)), initializer=_init_worker)
+        self.results = self.pool.imap(_estimate_chunk, tasks)
+        self.ready: dict[tuple[str, int], Any] = {}
+        self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
+
+    def estimate(self, method: str, reference, frame):
+        _check_reference(self.sequence, reference, frame)
+        while (method, frame.index) not in self.ready:
+            done_method, estimates, analysis_ms = next(self.results)
+            self.analysis_ms[done_method].extend(analysis_ms)
+            self.ready.update(((done_method, index), estimate) for index, estimate in estimates)
+        return self.ready.pop((method, frame.index))
+
+    def close(self) -> None:
+        self.pool.terminate()
+        self.pool.join()
+
+
+class _PooledMethod:
+    """One method's view of the pool, as the scoring loop wants it."""
+
+    def __init__(self, pool: _EstimationPool, method: str):
+        self.pool, self.method = pool, method
+
+    @property
+    def analysis_ms(self) -> list[float]:
+        return self.pool.analysis_ms[self.method]
+
+    def estimate(self, reference, frame):
+        return self.pool.estimate(self.method, reference, frame)

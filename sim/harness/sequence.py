@@ -1,0 +1,346 @@
+"""Sequence folders: a simulated walk on disk, readable by any program (docs/sequence-format.md).
+
+A sequence holds what a run needs to be scored again without the simulator: the frames as the
+sensor reports them, the exact depth the ground truth uses, the camera poses and the truth, and
+the scenario that made them. ``egostab run`` passes every frame through the same encoding
+(``encode_frame`` then ``decoded_frame``), so scoring a recorded sequence gives the figures of
+the run that recorded it, bit for bit.
+
+Depth is stored as 16-bit PNG (lossless): the reported depth in 0.1 mm units (the SR4000 reports
+at most 5 m; its 14-bit range steps are 0.3 mm), the exact depth in 0.5 mm units because scenes
+reach beyond 6.5 m (the 0.1 mm limit) up to the renderer's far clip (at most 30 m). 0 means no
+measurement (reported depth) or no surface (exact depth).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, Sequence as SequenceOf
+
+import numpy as np
+
+from sim.harness.atomic import atomic_path, write_text_atomic
+from sim.harness.validation import FileValueError
+from sim.world.camera import CameraIntrinsics, Frame
+from stabilizer import depth_to_disparity
+
+#: The format's name and version, as sequence.json's "format" states them.
+FORMAT_NAME, FORMAT_VERSION = "egostab-sequence", 1
+FORMAT = f"{FORMAT_NAME}/{FORMAT_VERSION}"
+#: Metres per unit of the reported depth PNGs (depth/) and of the exact depth PNGs (exact/).
+DEPTH_UNIT_M = 1e-4
+EXACT_DEPTH_UNIT_M = 5e-4
+#: Largest value of a 16-bit PNG.
+UINT16_MAX = 65535
+#: Files and folders of a sequence.
+SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT = "sequence.json", "truth.csv", "groundtruth.txt"
+DEPTH_DIR, EXACT_DIR = "depth", "exact"
+#: How a recording ended (sequence.json "ended"); "incomplete" until its final write.
+ENDINGS = ("complete", "fell", "interrupted")
+INCOMPLETE = "incomplete"
+#: Columns of truth.csv, in order (docs/sequence-format.md describes each).
+ROTATION_COLUMNS = tuple(f"r{row}{col}" for row in range(3) for col in range(3))
+TRUTH_COLUMNS = ("frame", "time_s", "reference_frame", "gait_cycle", "angle_deg", "dx", "dy",
+                 "truth_status", "truth_residual_px", "truth_points",
+                 "tx", "ty", "tz", *ROTATION_COLUMNS, "qx", "qy", "qz", "qw",
+                 "torso_x", "torso_y", "torso_z")
+#: MuJoCo camera axes (x right, y up, looking along -z) -> optical axes (x right, y down,
+#: z forward), the convention of TUM RGB-D and OpenCV used by groundtruth.txt's quaternions.
+MUJOCO_TO_OPTICAL = np.diag([1.0, -1.0, -1.0])
+
+
+def frame_file(index: int) -> str:
+    """File name of frame ``index`` in depth/ and exact/."""
+    return f"{index:06d}.png"
+
+
+@dataclass(frozen=True)
+class EncodedFrame:
+    """The two 16-bit images of one frame, as the PNGs store them."""
+
+    depth: np.ndarray
+    exact: np.ndarray
+
+
+def _to_units(depth_m: np.ndarray, keep: np.ndarray, unit_m: float, what: str) -> np.ndarray:
+    units = np.where(keep, np.rint(np.where(keep, depth_m, 0.0) / unit_m), 0.0)
+    largest = float(units.max(initial=0.0))
+    if largest > UINT16_MAX:
+        raise ValueError(f"{what} reaches {largest * unit_m:.2f} m; a sequence stores at most "
+                         f"{UINT16_MAX * unit_m:.4f} m")
+    return units.astype(np.uint16)
+
+
+def encode_frame(frame: Frame, no_surface_depth_m: float) -> EncodedFrame:
+    """The stored images of ``frame``: reported depth where ``valid``, exact depth where a
+    surface was rendered (below ``no_surface_depth_m``, the render's no-surface depth)."""
+    depth = np.asarray(frame.depth_m, dtype=np.float64)
+    exact = np.asarray(frame.true_depth_m, dtype=np.float64)
+    surface = np.isfinite(exact) & (exact > 0) & (exact < no_surface_depth_m)
+    return EncodedFrame(
+        _to_units(depth, np.asarray(frame.valid) & np.isfinite(depth), DEPTH_UNIT_M,
+                  f"frame {frame.index}'s reported depth"),
+        _to_units(exact, surface, EXACT_DEPTH_UNIT_M, f"frame {frame.index}'s exact depth"))
+
+
+def _from_units(units: np.ndarray, unit_m: float) -> np.ndarray:
+    return (units.astype(np.float64) * unit_m).astype(np.float32)
+
+
+def decoded_frame(index: int, time_s: float, cam_pos, cam_mat, encoded: EncodedFrame) -> Frame:
+    """The Frame a sequence gives back for the stored images and pose (what every score sees)."""
+    depth = _from_units(encoded.depth, DEPTH_UNIT_M)
+    return Frame(index=int(index), time_s=float(time_s), depth_m=depth, valid=encoded.depth > 0,
+                 disparity8=depth_to_disparity(depth),
+                 cam_pos=np.asarray(cam_pos, dtype=np.float64),
+                 cam_mat=np.asarray(cam_mat, dtype=np.float64),
+                 true_depth_m=_from_units(encoded.exact, EXACT_DEPTH_UNIT_M))
+
+
+def optical_quaternion(cam_mat: np.ndarray) -> tuple[float, float, float, float]:
+    """(qx, qy, qz, qw) of the camera's optical frame (x right, y down, z forward) in the world."""
+    from scipy.spatial.transform import Rotation
+
+    return tuple(float(q) for q in
+                 Rotation.from_matrix(np.asarray(cam_mat) @ MUJOCO_TO_OPTICAL).as_quat())
+
+
+@dataclass(frozen=True)
+class RecordedFall:
+    """The robot's fall that ended a recording."""
+
+    time_s: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class TruthRow:
+    """One row of truth.csv: the frame's time, reference, truth and poses."""
+
+    frame: int
+    time_s: float
+    reference_frame: int
+    gait_cycle: int
+    angle_deg: float
+    dx: float
+    dy: float
+    truth_status: str
+    truth_residual_px: float
+    truth_points: int
+    cam_pos: tuple[float, float, float]
+    cam_mat: tuple[tuple[float, float, float], ...]
+    torso: tuple[float, float, float]
+
+    def cells(self) -> list[str]:
+        """The row's cells; floats by repr() so they read back bit for bit."""
+        quaternion = optical_quaternion(np.asarray(self.cam_mat))
+        values = (self.frame, self.time_s, self.reference_frame, self.gait_cycle,
+                  self.angle_deg, self.dx, self.dy, self.truth_status, self.truth_residual_px,
+                  self.truth_points, *self.cam_pos, *(v for row in self.cam_mat for v in row),
+                  *quaternion, *self.torso)
+        return [repr(float(v)) if isinstance(v, float) else str(v) for v in values]
+
+    def tum_line(self) -> str:
+        """groundtruth.txt's line: ``timestamp tx ty tz qx qy qz qw`` (TUM RGB-D)."""
+        quaternion = optical_quaternion(np.asarray(self.cam_mat))
+        return " ".join(repr(float(v)) for v in (self.time_s, *self.cam_pos, *quaternion))
+
+
+class SequenceWriter:
+    """Writes a sequence folder frame by frame; ``close`` writes the tables and sequence.json.
+
+    sequence.json says "incomplete" from the start until ``close``, so a folder whose writer
+    was killed is refused by ``load_sequence``.
+    """
+
+    def __init__(self, out_dir: str | Path, header: Mapping[str, Any]):
+        self.out_dir = Path(out_dir)
+        self.header = dict(header)
+        self.rows: list[TruthRow] = []
+        for folder in (DEPTH_DIR, EXACT_DIR):
+            (self.out_dir / folder).mkdir(parents=True, exist_ok=True)
+        self._write_json(INCOMPLETE, "", None)
+
+    def add(self, encoded: EncodedFrame, row: TruthRow) -> None:
+        """Store one frame's images and its truth row."""
+        import cv2
+
+        for folder, image in ((DEPTH_DIR, encoded.depth), (EXACT_DIR, encoded.exact)):
+            path = self.out_dir / folder / frame_file(row.frame)
+            encoded_ok, png = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+            if not encoded_ok:
+                raise OSError(f"{path}: could not encode the PNG")
+            with atomic_path(path) as temporary:
+                temporary.write_bytes(png.tobytes())
+        self.rows.append(row)
+
+    def close(self, ended: str, message: str = "", fall: RecordedFall | None = None, *,
+              sim_time_s: float = math.nan) -> dict:
+        """Write truth.csv, groundtruth.txt and (last) sequence.json with how it ended and the
+        simulated time; return sequence.json's content."""
+        if ended not in ENDINGS:
+            raise ValueError(f"ended must be one of {', '.join(ENDINGS)}; got {ended!r}")
+        lines = [",".join(TRUTH_COLUMNS)] + [",".join(row.cells()) for row in self.rows]
+        write_text_atomic(self.out_dir / TRUTH_CSV, "\n".join(lines) + "\n")
+        write_text_atomic(self.out_dir / GROUNDTRUTH_TXT,
+                          "# timestamp tx ty tz qx qy qz qw\n"
+                          + "".join(row.tum_line() + "\n" for row in self.rows))
+        return self._write_json(ended, message, fall, sim_time_s)
+
+    def _write_json(self, ended: str, message: str, fall: RecordedFall | None,
+                    sim_time_s: float = math.nan) -> dict:
+        content = {"format": FORMAT, **self.header, "frames": len(self.rows),
+                   "ended": ended, "message": message,
+                   "fall": None if fall is None else {"time_s": fall.time_s,
+                                                      "reason": fall.reason},
+                   "sim_time_s": None if math.isnan(sim_time_s) else sim_time_s}
+        write_text_atomic(self.out_dir / SEQUENCE_JSON, json.dumps(content, indent=2) + "\n")
+        return content
+
+
+@dataclass(frozen=True)
+class LoadedSequence:
+    """A sequence folder read by ``load_sequence``; frames are read from disk on demand.
+
+    Attributes:
+        path: the folder.
+        header: sequence.json's content.
+        scenario: the resolved scenario (a dict, as ``Scenario.to_dict`` without "source").
+        intrinsics: the camera's pinhole.
+        rows: truth.csv, one TruthRow per frame, in frame order.
+        fall: the fall that ended the recording, if one did.
+    """
+
+    path: Path
+    header: Mapping[str, Any]
+    scenario: Mapping[str, Any]
+    intrinsics: CameraIntrinsics
+    rows: SequenceOf[TruthRow]
+    fall: RecordedFall | None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.rows)
+
+    @property
+    def ended(self) -> str:
+        return self.header["ended"]
+
+    def encoded(self, index: int, exact: bool = True) -> EncodedFrame:
+        """The stored images of frame ``index`` (the exact depth all 0 unless ``exact``)."""
+        depth = self._read_png(DEPTH_DIR, index)
+        return EncodedFrame(depth, self._read_png(EXACT_DIR, index) if exact
+                            else np.zeros_like(depth))
+
+    def frame(self, index: int, exact: bool = True) -> Frame:
+        """Frame ``index`` decoded, with its exact pose; ``exact=False`` skips reading the
+        exact depth (all 0: no surface), which only the ground truth needs."""
+        row = self.rows[index]
+        return decoded_frame(row.frame, row.time_s, row.cam_pos, row.cam_mat,
+                             self.encoded(index, exact))
+
+    def _read_png(self, folder: str, index: int) -> np.ndarray:
+        import cv2
+
+        path = self.path / folder / frame_file(index)
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        expected = (self.intrinsics.height, self.intrinsics.width)
+        if image is None:
+            raise FileValueError(str(path), "image", "missing or not a readable PNG",
+                                 f"a {expected[1]} x {expected[0]} 16-bit grey PNG")
+        if image.dtype != np.uint16 or image.shape != expected:
+            raise FileValueError(str(path), "image",
+                                 f"is {image.dtype} with shape {image.shape}",
+                                 f"a {expected[1]} x {expected[0]} 16-bit grey PNG")
+        return image
+
+
+def _parse_row(cells: dict[str, str], source: str, line: int) -> TruthRow:
+    def number(name: str, kind=float):
+        try:
+            return kind(cells[name])
+        except (TypeError, ValueError):
+            raise FileValueError(f"{source}:{line}", name, f"{cells[name]!r} is not a number",
+                                 "a number") from None
+
+    rotation = [number(name) for name in ROTATION_COLUMNS]
+    return TruthRow(
+        frame=number("frame", int), time_s=number("time_s"),
+        reference_frame=number("reference_frame", int), gait_cycle=number("gait_cycle", int),
+        angle_deg=number("angle_deg"), dx=number("dx"), dy=number("dy"),
+        truth_status=cells["truth_status"], truth_residual_px=number("truth_residual_px"),
+        truth_points=number("truth_points", int),
+        cam_pos=tuple(number(name) for name in ("tx", "ty", "tz")),
+        cam_mat=tuple(tuple(rotation[3 * r:3 * r + 3]) for r in range(3)),
+        torso=tuple(number(name) for name in ("torso_x", "torso_y", "torso_z")))
+
+
+def read_truth_csv(path: Path, n_frames: int) -> list[TruthRow]:
+    """truth.csv's rows, checked: every column, frames 0..n_frames-1 in order."""
+    with open(path, newline="", encoding="utf-8") as handle:
+        reader = csv.DictReader(handle)
+        missing = [name for name in TRUTH_COLUMNS if name not in (reader.fieldnames or ())]
+        if missing:
+            raise FileValueError(str(path), "header", f"lacks column(s) {', '.join(missing)}",
+                                 f"the columns {', '.join(TRUTH_COLUMNS)}")
+        rows = [_parse_row(cells, str(path), line) for line, cells in enumerate(reader, start=2)]
+    for position, row in enumerate(rows):
+        if row.frame != position:
+            raise FileValueError(f"{path}:{position + 2}", "frame", f"is {row.frame}",
+                                 f"frames 0, 1, 2, ... in order (here {position})")
+    if len(rows) != n_frames:
+        raise FileValueError(str(path), "rows", f"has {len(rows)} frame(s)",
+                             f"one row per frame: sequence.json says {n_frames}")
+    return rows
+
+
+def load_sequence(path: str | Path) -> LoadedSequence:
+    """Open and check a sequence folder (format, version, tables, every frame's files).
+
+    Raises:
+        FileValueError: a wrong format or version, an unfinished recording, a missing or
+            malformed table, a missing frame file: one line naming the file.
+        FileNotFoundError: no such folder.
+    """
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no such sequence folder; accepted: a folder "
+                                f"written by `egostab record`")
+    json_path = folder / SEQUENCE_JSON
+    try:
+        header = json.loads(json_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileValueError(str(json_path), "file", "is missing",
+                             "a sequence folder written by `egostab record`") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise FileValueError(str(json_path), "content", f"is not JSON ({error})",
+                             "a JSON object") from None
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        found = header.get("format") if isinstance(header, dict) else header
+        raise FileValueError(str(json_path), "format", f"is {found!r}",
+                             f"{FORMAT!r} (this version of egostab reads that one)")
+    if header.get("ended") not in ENDINGS:
+        raise FileValueError(str(json_path), "ended", f"is {header.get('ended')!r}: the "
+                             "recording did not finish", f"one of {', '.join(ENDINGS)}; "
+                             "record the sequence again")
+    try:
+        n_frames = int(header["frames"])
+        intrinsics = CameraIntrinsics(**{key: header["intrinsics"][key] for key in
+                                         ("width", "height", "fx", "fy", "cx", "cy")})
+        scenario, fall = header["scenario"], header.get("fall")
+        fall = None if fall is None else RecordedFall(float(fall["time_s"]), str(fall["reason"]))
+    except (KeyError, TypeError, ValueError) as error:
+        raise FileValueError(str(json_path), "content", f"lacks or mangles {error}",
+                             "the keys of docs/sequence-format.md") from None
+    rows = read_truth_csv(folder / TRUTH_CSV, n_frames)
+    for index in range(n_frames):
+        for sub in (DEPTH_DIR, EXACT_DIR):
+            if not (folder / sub / frame_file(index)).is_file():
+                raise FileValueError(str(folder / sub / frame_file(index)), "file",
+                                     "is missing", f"one PNG per frame in {sub}/ "
+                                     f"(frames 0 to {n_frames - 1})")
+    return LoadedSequence(folder, header, scenario, intrinsics, rows, fall)

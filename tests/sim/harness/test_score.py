@@ -1,0 +1,163 @@
+"""`egostab score`: a recorded sequence scores exactly as the run of the same scenario; workers
+change nothing; estimates of any program are scored; bad estimates files are refused by line."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from scenarios import SCENARIOS_DIR
+from sim.harness.cli import main
+from sim.harness.runner import RecordConfig, RunConfig, record, run
+from sim.harness.score import ScoreConfig, reference_chunks, score
+
+CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
+METHODS = ("t2fuzzy", "ecc")
+N_FRAMES = 20
+#: Timings differ from run to run; every other figure is identical bit for bit.
+TIMINGS = {"ms", "ms_mean", "ms_median"}
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory):
+    root = tmp_path_factory.mktemp("score")
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(root / "sequence"),
+                        max_frames=N_FRAMES))
+    run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(root / "run"), methods=METHODS,
+                  record=False, max_frames=N_FRAMES))
+    for workers in (1, 2):
+        score(ScoreConfig(sequence=str(root / "sequence"), out_dir=str(root / f"w{workers}"),
+                          methods=METHODS, record=False, workers=workers))
+    return root
+
+
+def _rows(run_dir):
+    with open(run_dir / "frames.csv", newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _same_rows(first, second):
+    assert len(first) == len(second) > 0
+    for a, b in zip(first, second):
+        for key in a.keys() - TIMINGS:
+            assert a[key] == b[key], (a["frame_index"], a["method"], key)
+
+
+def _same_summary(first, second, path="summary"):
+    if isinstance(first, dict):
+        assert first.keys() == second.keys(), path
+        for key in first.keys() - TIMINGS:
+            _same_summary(first[key], second[key], f"{path}.{key}")
+    else:
+        assert first == second or (first != first and second != second), path
+
+
+def _summary(run_dir):
+    return json.loads((run_dir / "metrics.json").read_text())["summary"]
+
+
+def test_scoring_a_recorded_sequence_gives_the_figures_of_the_run(folders):
+    _same_rows(_rows(folders / "run"), _rows(folders / "w1"))
+    _same_summary(_summary(folders / "run"), _summary(folders / "w1"))
+    metrics = json.loads((folders / "w1" / "metrics.json").read_text())
+    assert metrics["status"] == "complete" and metrics["run"]["frames_done"] == N_FRAMES
+    for name in ("summary.md", "estimates_t2fuzzy.png", "error_histograms.png"):
+        assert (folders / "w1" / name).stat().st_size > 0
+
+
+def test_two_workers_give_the_figures_of_one(folders):
+    _same_rows(_rows(folders / "w1"), _rows(folders / "w2"))
+    _same_summary(_summary(folders / "w1"), _summary(folders / "w2"))
+
+
+def test_chunks_are_cut_only_where_the_reference_changes():
+    references = [0] * 5 + [5] * 4 + [9] * 6
+    chunks = reference_chunks(references, 3)
+    assert [index for chunk in chunks for index in chunk] == list(range(15))
+    for chunk in chunks:
+        assert chunk[0] == 0 or references[chunk[0]] != references[chunk[0] - 1]
+    assert reference_chunks(list(range(-1, 9)), 5) == [[0, 1], [2, 3], [4, 5], [6, 7], [8, 9]]
+
+
+OFFSETS = (0.5, -1.25, 2.0)
+
+
+def _offsets(frame):  # different per frame (constant errors make a degenerate histogram)
+    return tuple(offset * (1 + 0.1 * frame) for offset in OFFSETS)
+
+
+def _estimates_from_truth(sequence_dir, path, skip=()):
+    with open(sequence_dir / "truth.csv", newline="") as handle:
+        truth = list(csv.DictReader(handle))
+    lines = ["frame,angle_deg,dx,dy,status"]
+    for row in truth:
+        if int(row["frame"]) in skip:
+            continue
+        values = [float(row[k]) + offset
+                  for k, offset in zip(("angle_deg", "dx", "dy"), _offsets(int(row["frame"])))]
+        lines.append(",".join([row["frame"], *map(repr, values), "ok" if row["frame"] != "4"
+                               else "lost_track"]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp_path):
+    estimates = _estimates_from_truth(folders / "sequence", tmp_path / "mine.csv", skip={7})
+    out = tmp_path / "scored"
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                                estimates={"offset": str(estimates)}, record=False))
+    rows = _rows(out)
+    assert {row["method"] for row in rows} == {"offset"} and len(rows) == N_FRAMES
+    by_frame = {int(row["frame_index"]): row for row in rows}
+    assert by_frame[7]["status"] == "missing" and by_frame[4]["status"] == "lost_track"
+    for frame, row in by_frame.items():
+        if frame in (4, 7) or row["truth_status"] != "ok":
+            continue
+        errors = (float(row["err_angle_deg"]), float(row["err_dx_px"]), float(row["err_dy_px"]))
+        assert errors == pytest.approx(tuple(abs(v) for v in _offsets(frame)), abs=1e-12)
+    assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
+
+
+@pytest.mark.parametrize("text, line, column", [
+    ("frame,angle_deg,dx\n0,0,0\n", 1, "header"),
+    ("frame,angle_deg,dx,dy\n0,0,0,0\n1,0,zero,0\n", 3, "dx"),
+    ("frame,angle_deg,dx,dy\n0,0,0,0\n1,0,0,0\n1,0,0,0\n", 4, "frame"),
+    ("frame,angle_deg,dx,dy\n0,0,0,0\n999,0,0,0\n", 3, "frame"),
+    ("frame,angle_deg,dx,dy\nfirst,0,0,0\n", 2, "frame"),
+    ("frame,angle_deg,dx,dy\n0,0,nan,0\n", 2, "dx"),
+])
+def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text, line, column):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    out = tmp_path / "out"
+    assert main(["score", str(folders / "sequence"), "--estimates", f"mine={path}",
+                 "--out", str(out), "--quiet", "--no-record"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"{path}:{line}: {column}" in err and "\n" not in err
+    assert not (out / "metrics.json").exists()
+
+
+def test_a_recording_that_ended_with_a_fall_scores_as_the_run_that_fell(tmp_path, monkeypatch):
+    from sim.world.walking import RobotSimulation
+
+    real_step = RobotSimulation.step
+
+    def shove(self):  # 40 N sideways on the torso from 0.3 s on (as test_runner's fall)
+        if self.time > 0.3:
+            self.data.xfrc_applied[self.model.body("humanoid/torso").id, 1] = 40.0
+        real_step(self)
+
+    monkeypatch.setattr(RobotSimulation, "step", shove)
+    header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
+                                 max_frames=90))
+    ran = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"), methods=("ecc",),
+                        record=False, max_frames=90))
+    scored = score(ScoreConfig(sequence=str(tmp_path / "seq"), out_dir=str(tmp_path / "score"),
+                               methods=("ecc",), record=False))
+    assert header["ended"] == "fell" and header["fall"]["reason"]
+    assert ran["status"] == scored["status"] == "fell"
+    assert ran["run"]["fall"] == scored["run"]["fall"]
+    assert ran["run"]["frames_done"] == scored["run"]["frames_done"] == header["frames"] < 90
+    _same_rows(_rows(tmp_path / "run"), _rows(tmp_path / "score"))

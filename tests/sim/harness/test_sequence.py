@@ -1,0 +1,115 @@
+"""Sequence folders: what `egostab record` writes reads back exactly; bad folders are refused."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from scenarios import SCENARIOS_DIR
+from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, record
+from sim.harness.scenario import load_scenario
+from sim.harness.sequence import FORMAT, TRUTH_COLUMNS, load_sequence
+from sim.harness.validation import FileValueError
+
+CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
+N_FRAMES = 5
+
+
+@pytest.fixture(scope="module")
+def sequence_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sequence") / "ci_corridor"
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(out), max_frames=N_FRAMES))
+    return out
+
+
+def test_a_recorded_sequence_reads_back_the_frames_and_truth_it_was_made_of(sequence_dir):
+    sequence = load_sequence(sequence_dir)
+    header = json.loads((sequence_dir / "sequence.json").read_text())
+    assert header["format"] == FORMAT and header["ended"] == "complete"
+    assert header["frames"] == sequence.n_frames == N_FRAMES
+    assert header["intrinsics"]["width"] == 176 and header["provenance"]["versions"]["numpy"]
+    with SimulatedFrames(load_scenario(CI_CORRIDOR), N_FRAMES) as source:
+        simulated = list(source)
+    for item in simulated:
+        loaded = sequence.frame(item.frame.index)
+        for name in ("depth_m", "valid", "disparity8", "cam_pos", "cam_mat", "true_depth_m"):
+            np.testing.assert_array_equal(getattr(loaded, name), getattr(item.frame, name))
+        assert loaded.time_s == item.frame.time_s
+        row = sequence.rows[item.frame.index]
+        assert row.gait_cycle == item.gait_cycle
+        assert row.torso == tuple(item.robot_position.tolist())
+        reference = sequence.frame(row.reference_frame)
+        truth = frame_truth(reference, loaded, sequence.intrinsics)
+        assert (row.angle_deg, row.dx, row.dy) == truth.motion.as_tuple()
+        assert row.truth_points == truth.n_points
+    lines = (sequence_dir / "groundtruth.txt").read_text().splitlines()
+    assert lines[0].startswith("#") and len(lines) == N_FRAMES + 1
+    quaternion = np.array([float(v) for v in lines[1].split()[4:]])
+    assert len(lines[1].split()) == 8 and abs(np.linalg.norm(quaternion) - 1) < 1e-12
+
+
+def _broken_copy(sequence_dir, tmp_path, damage):
+    copy = tmp_path / "broken"
+    shutil.copytree(sequence_dir, copy)
+    damage(copy)
+    return copy
+
+
+def _set_json(key, value):
+    def damage(folder):
+        path = folder / "sequence.json"
+        content = json.loads(path.read_text())
+        content[key] = value
+        path.write_text(json.dumps(content))
+    return damage
+
+
+@pytest.mark.parametrize("damage, named", [
+    (_set_json("format", "egostab-sequence/99"), "sequence.json"),
+    (_set_json("ended", "incomplete"), "sequence.json"),
+    (_set_json("frames", N_FRAMES + 1), "truth.csv"),
+    (lambda folder: (folder / "depth" / "000003.png").unlink(), "000003.png"),
+    (lambda folder: (folder / "truth.csv").write_text(",".join(TRUTH_COLUMNS[:5]) + "\n"),
+     "truth.csv"),
+    (lambda folder: (folder / "sequence.json").write_text("{not json"), "sequence.json"),
+])
+def test_a_bad_sequence_is_refused_naming_the_file(sequence_dir, tmp_path, damage, named):
+    with pytest.raises(FileValueError) as error:
+        load_sequence(_broken_copy(sequence_dir, tmp_path, damage))
+    message = str(error.value)
+    assert named in message and "\n" not in message
+
+
+def test_a_damaged_frame_image_is_refused_when_read(sequence_dir, tmp_path):
+    import cv2
+
+    def to_8_bit(folder):
+        cv2.imwrite(str(folder / "exact" / "000002.png"), np.zeros((144, 176), np.uint8))
+
+    sequence = load_sequence(_broken_copy(sequence_dir, tmp_path, to_8_bit))
+    with pytest.raises(FileValueError, match="000002.png"):
+        sequence.frame(2)
+
+
+def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path, monkeypatch):
+    import sim.harness.ground_truth
+
+    real = sim.harness.ground_truth.ground_truth
+    calls = []
+
+    def interrupt_on_fourth(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_fourth)
+    header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
+                                 max_frames=N_FRAMES))
+    assert header["ended"] == "interrupted" and "interrupted" in header["message"]
+    sequence = load_sequence(tmp_path / "seq")
+    assert sequence.n_frames == 3 and sequence.ended == "interrupted"
+    assert not list((tmp_path / "seq").rglob(".*.tmp"))
