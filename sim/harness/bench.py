@@ -288,6 +288,42 @@ def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
     return fps
 
 
+def rescoring(n_frames: int | None = None) -> dict[str, float]:
+    """Re-scoring a recorded sequence of the default scenario: its speed and its parallelism.
+
+    Records ``n_frames`` (None: the whole scenario) once, then times ``egostab score`` of
+    ``t2fuzzy`` alone in this process (as a multiple of real time: the sequence's simulated
+    seconds per wall-clock second), and of every method with one and with two worker processes
+    (their ratio is the speed-up of ``--workers 2``).
+    """
+    from sim.harness.runner import RecordConfig, record
+    from sim.harness.score import ScoreConfig, score
+
+    with tempfile.TemporaryDirectory() as scratch:
+        sequence = Path(scratch) / "sequence"
+        sim_time_s = record(RecordConfig(DEFAULT_SCENARIO, str(sequence),
+                                         max_frames=n_frames))["sim_time_s"]
+
+        def wall_s(name: str, **options) -> float:
+            started = time.perf_counter()
+            score(ScoreConfig(str(sequence), str(Path(scratch) / name), record=False, **options))
+            return time.perf_counter() - started
+
+        t2fuzzy_rtf = sim_time_s / wall_s("t2fuzzy", methods=("t2fuzzy",))
+        one, two = wall_s("workers1", workers=1), wall_s("workers2", workers=2)
+    print(f"re-scoring t2fuzzy on a recorded {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): "
+          f"{t2fuzzy_rtf:.1f}x real time, one core")
+    print(f"score, every method: --workers 1 {one:.1f} s, --workers 2 {two:.1f} s "
+          f"({one / two:.2f}x)")
+    return {"rescore_t2fuzzy_realtime_factor": t2fuzzy_rtf, "score_workers1_s": one,
+            "score_workers2_s": two}
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min)"
+
+
 def _machine() -> str:
     import platform
 
@@ -307,6 +343,7 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     from sim.harness.runner import RunConfig, run
 
     n_frames = 60 if quick else 200
+    load_before = _load()
     synthetic = stabilizer_benchmark(n_frames=n_frames)
     walk = stabilizer_benchmark(scenes=simulated_scenes(DEFAULT_SCENARIO, n_frames // 2 if quick
                                                         else 150),
@@ -321,10 +358,12 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     pipeline_rtf = metrics["run"]["realtime_factor"]
     print(f"whole pipeline, {DEFAULT_SCENARIO}, {pipeline_frames} frames, "
           f"{len(metrics['run']['methods'])} methods, recording on: {pipeline_rtf:.2f}x real time")
+    sequences = rescoring(150 if quick else None)
     figures = {"machine": _machine(), "date": time.strftime("%Y-%m-%d"),
+               "load": f"before: {load_before}; after: {_load()}",
                "stabilizer_ms_synthetic": synthetic, "stabilizer_ms_simulated": walk,
                "physics_realtime_factor": physics_rtf, "render_tof_fps": render_tof_fps,
-               "pipeline_realtime_factor": pipeline_rtf, "quick": quick}
+               "pipeline_realtime_factor": pipeline_rtf, **sequences, "quick": quick}
     if out_path is not None:
         write_text_atomic(Path(out_path), bench_markdown(figures))
     return figures
@@ -333,7 +372,7 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
 def bench_markdown(figures: dict) -> str:
     """results/bench.md: the figures and the machine they came from."""
     lines = [f"# Benchmarks ({figures['date']})", "",
-             f"Machine: {figures['machine']}.", "",
+             f"Machine: {figures['machine']}; {figures['load']}.", "",
              "Measured by `egostab bench" + (" --quick" if figures["quick"] else "")
              + " --out results/bench.md`; stabilizers on one thread.", "",
              "| Method | ms/frame, synthetic scenes | x t2fuzzy | ms/frame, simulated walk | "
@@ -347,11 +386,18 @@ def bench_markdown(figures: dict) -> str:
               f"{figures['physics_realtime_factor']:.1f}x real time |",
               f"| SR4000 render + ToF, motion blur off | {figures['render_tof_fps']:.0f} frames/s |",
               f"| whole pipeline, default scenario, every method, recording on | "
-              f"{figures['pipeline_realtime_factor']:.2f}x real time |", ""]
+              f"{figures['pipeline_realtime_factor']:.2f}x real time |",
+              f"| re-scoring t2fuzzy alone on the recorded default scenario, one core | "
+              f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
+              f"| `egostab score`, every method, `--workers 2` against `--workers 1` | "
+              f"{figures['score_workers1_s'] / figures['score_workers2_s']:.2f}x faster "
+              f"({figures['score_workers1_s']:.1f} s / {figures['score_workers2_s']:.1f} s) |",
+              ""]
     return "\n".join(lines)
 
 
 COMPONENTS = {
+    "rescoring": lambda: rescoring(150),
     "ground-truth": lambda: (ground_truth_ms(stride=2), ground_truth_ms(stride=1)),
     "scoring": scoring_ms,
     "recording": recording_ms,

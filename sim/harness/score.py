@@ -14,12 +14,15 @@ limits before they load.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
+
+import numpy as np
 
 #: Environment variables that set a BLAS / OpenMP library's thread count.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -86,7 +89,8 @@ def score(config: ScoreConfig) -> dict:
                             "estimates": {name: str(path)
                                           for name, path in config.estimates.items()},
                             "workers": config.workers})
-    with _method_estimations(sequence, methods, config.workers) as estimations:
+    with _method_estimations(sequence, methods, config.workers,
+                             keep_images=scoring.recording_path is not None) as estimations:
         return score_frames(SequenceFrames(sequence), scoring, {**estimations, **file_methods},
                             config.progress)
 
@@ -224,13 +228,18 @@ def parse_estimates_argument(text: str) -> tuple[str, str]:
 # -- methods: in this process, or in worker processes -------------------------------------------
 
 @contextmanager
-def _method_estimations(sequence, methods: tuple[str, ...], workers: int) -> Iterator[dict]:
+def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
+                        keep_images: bool) -> Iterator[dict]:
+    """Each method's estimation: in this process, or in a pool of ``workers`` processes
+    (whose estimates come back without their diagnostic images unless ``keep_images``: a
+    recording shows them, nothing else reads them, and pickling them costs more than the
+    estimates)."""
     from sim.harness.runner import MethodEstimation
 
     if workers == 1 or not methods:
         yield {method: MethodEstimation(method) for method in methods}
         return
-    pool = _EstimationPool(sequence, methods, workers)
+    pool = _EstimationPool(sequence, methods, workers, keep_images)
     try:
         yield {method: _PooledMethod(pool, method) for method in methods}
     finally:
@@ -284,12 +293,20 @@ def _init_worker() -> None:
 _WORKER_SEQUENCES: dict[str, Any] = {}
 
 
-def _estimate_chunk(task: tuple[str, str, list[int]]):
+def _without_images(estimate):
+    """``estimate`` with its motion's diagnostic arrays (segmentations, subbands) left out."""
+    kept = {key: value for key, value in estimate.motion.diagnostics.items()
+            if not isinstance(value, np.ndarray)}
+    return dataclasses.replace(estimate,
+                               motion=dataclasses.replace(estimate.motion, diagnostics=kept))
+
+
+def _estimate_chunk(task: tuple[str, str, list[int], bool]):
     """In a worker: one method's estimates of a chunk of frames, and its analysis times."""
     from sim.harness.runner import MethodEstimation
     from sim.harness.sequence import load_sequence
 
-    path, method, indices = task
+    path, method, indices, keep_images = task
     if path not in _WORKER_SEQUENCES:
         _WORKER_SEQUENCES[path] = load_sequence(path)
     sequence = _WORKER_SEQUENCES[path]
@@ -300,21 +317,22 @@ def _estimate_chunk(task: tuple[str, str, list[int]]):
         reference_index = sequence.rows[index].reference_frame
         if reference is None or reference.index != reference_index:
             reference = sequence.frame(reference_index, exact=False)
-        estimates.append((index, estimation.estimate(reference,
-                                                     sequence.frame(index, exact=False))))
+        estimate = estimation.estimate(reference, sequence.frame(index, exact=False))
+        estimates.append((index, estimate if keep_images else _without_images(estimate)))
     return method, estimates, estimation.analysis_ms
 
 
 class _EstimationPool:
     """Spawn workers estimating (method, chunk) tasks; results are taken in task order."""
 
-    def __init__(self, sequence, methods: tuple[str, ...], workers: int):
+    def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         import multiprocessing
 
         self.sequence = sequence
         chunks = reference_chunks([row.reference_frame for row in sequence.rows],
                                   workers * CHUNKS_PER_WORKER)
-        tasks = [(str(sequence.path), method, chunk) for chunk in chunks for method in methods]
+        tasks = [(str(sequence.path), method, chunk, keep_images)
+                 for chunk in chunks for method in methods]
         with _single_thread_environment():
             self.pool = multiprocessing.get_context("spawn").Pool(
                 min(workers, len(tasks)), initializer=_init_worker)
