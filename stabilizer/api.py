@@ -1,4 +1,27 @@
-"""One interface for every estimator: ``estimate``, ``Stabilizer`` and the method registry."""
+"""One interface for every estimator: ``estimate``, ``Stabilizer`` and the method registry.
+
+Every method's estimate goes through the same steps: the frames' type and size are checked
+before any work (each method has a smallest image side, all share the largest,
+:data:`MAX_SIDE`); the method estimates; an ``"ok"`` estimate is then checked by the shared
+trust check (:class:`stabilizer.verification.Verifier`, docs/method.md section 11), so that
+``"ok"`` means the compensated current frame does line up with the reference.
+
+======================  ===========================================  ========================
+method                  estimator                                    smallest image side
+======================  ===========================================  ========================
+``t2fuzzy``             the paper's method with its refinements      2 * ``max_shift_px`` + 8
+                        (:mod:`stabilizer.t2fuzzy`)                  (96 by default)
+``t2fuzzy_paper``       the paper's pipeline as written              2 * ``max_shift_px`` + 8
+                                                                     (96 by default)
+``sift``                :mod:`stabilizer.peers.sift`                 64
+``icp``                 :mod:`stabilizer.peers.icp`                  64
+``ecc``                 :mod:`stabilizer.peers.ecc`                  64
+``fourier_mellin``      :mod:`stabilizer.peers.fourier_mellin`       64
+======================  ===========================================  ========================
+
+Every method takes images of at most :data:`MAX_SIDE` x :data:`MAX_SIDE` (4096 x 4096) pixels.
+Why these sizes: docs/method.md, section 9, and docs/peers.md, "Image sizes".
+"""
 
 from __future__ import annotations
 
@@ -7,15 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from stabilizer.inputs import as_disparity, check_same_shape
+from stabilizer.inputs import as_disparity
 from stabilizer.motion import Motion
 from stabilizer.t2fuzzy_refinements import Refinements
+from stabilizer.verification import VerificationParams, Verifier
 
 #: Method name -> ("module:class", default parameters). Each class is built as
-#: ``cls(reference, **params)`` (the reference analysed once) and has
-#: ``estimate(current) -> Motion``. "t2fuzzy_paper" is the paper's pipeline as written, without
-#: the refinements of "t2fuzzy" (stabilizer.t2fuzzy_refinements), so that what the refinements
-#: add stays measurable.
+#: ``cls(reference, **params)`` (the reference analysed once), has ``estimate(current) ->
+#: Motion`` and ``min_side(**params) -> int``, the smallest image side it accepts with those
+#: parameters. "t2fuzzy_paper" is the paper's pipeline as written, without the refinements of
+#: "t2fuzzy" (stabilizer.t2fuzzy_refinements), so that what the refinements add stays
+#: measurable.
 _METHODS = {
     "t2fuzzy": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {}),
     "t2fuzzy_paper": ("stabilizer.t2fuzzy:T2FuzzyEstimator", {"refinements": Refinements.off()}),
@@ -24,6 +49,9 @@ _METHODS = {
     "ecc": ("stabilizer.peers.ecc:EccEstimator", {}),
     "fourier_mellin": ("stabilizer.peers.fourier_mellin:FourierMellinEstimator", {}),
 }
+#: Largest image side (pixels) of every method: 16.8 million pixels bound the memory and time
+#: of one estimate (the SR4000 gives 176 x 144, a megapixel ToF camera about 1024 x 1024).
+MAX_SIDE = 4096
 
 
 def available_methods() -> tuple[str, ...]:
@@ -31,39 +59,56 @@ def available_methods() -> tuple[str, ...]:
     return tuple(_METHODS)
 
 
-def _estimator(method: str, reference: np.ndarray, params: dict[str, Any]):
+def _estimator_class(method: str):
     if method not in _METHODS:
         raise ValueError(f"unknown method {method!r}; accepted: {', '.join(_METHODS)}")
-    target, defaults = _METHODS[method]
-    module_name, class_name = target.split(":")
-    estimator_class = getattr(importlib.import_module(module_name), class_name)
-    return estimator_class(reference, **{**defaults, **params})
+    module_name, class_name = _METHODS[method][0].split(":")
+    return getattr(importlib.import_module(module_name), class_name)
 
 
 class Stabilizer:
     """Estimates the motion of many current frames against one reference analysed once.
 
     Args:
-        reference: uint8 disparity-like image (0 = invalid) or float depth in metres.
+        reference: uint8 disparity-like image (0 = invalid) or float depth in metres, between
+            the method's smallest side (module docstring) and :data:`MAX_SIDE` on each side.
         method: one of :func:`available_methods`; default ``"t2fuzzy"`` (Kang et al. 2009).
+        verification: the thresholds of the trust check that every ``"ok"`` estimate passes
+            (:class:`~stabilizer.verification.VerificationParams`); an estimate that fails it
+            has the status ``"unverified"``. None: no check (the method's own criteria only).
         **params: the method's own parameters, passed to its estimator class (see its
             docstring); for example ``refinements=Refinements(rotation_search=False)`` or
             ``translation=TranslationParams(max_shift_px=20)`` for the ``t2fuzzy`` methods
             (:mod:`stabilizer.t2fuzzy`).
+
+    Raises:
+        ValueError: an unknown method, a frame of the wrong type, dimensions or size (the
+            message names the size and the accepted range), or a bad parameter value.
     """
 
-    def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", **params: Any):
+    def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", *,
+                 verification: VerificationParams | None = VerificationParams(),
+                 **params: Any):
+        estimator_class = _estimator_class(method)
+        params = {**_METHODS[method][1], **params}
         self.method = method
-        self.reference = as_disparity(reference, "reference")
-        self._estimator = _estimator(method, self.reference, params)
+        self.reference = as_disparity(reference, "reference",
+                                      min_side=estimator_class.min_side(**params),
+                                      max_side=MAX_SIDE, method=method)
+        self._estimator = estimator_class(self.reference, **params)
+        self._verifier = Verifier(self.reference, verification) if verification else None
 
     def estimate(self, current: np.ndarray) -> Motion:
-        current = as_disparity(current, "current")
-        check_same_shape(self.reference, current)
-        return self._estimator.estimate(current)
+        """Motion of ``current`` relative to the reference (docs/design.md convention)."""
+        current = as_disparity(current, "current", reference_shape=self.reference.shape)
+        motion = self._estimator.estimate(current)
+        return self._verifier(current, motion) if self._verifier is not None else motion
 
 
 def estimate(reference: np.ndarray, current: np.ndarray, method: str = "t2fuzzy",
              **params: Any) -> Motion:
-    """Motion of ``current`` relative to ``reference`` (docs/design.md convention) by ``method``."""
+    """Motion of ``current`` relative to ``reference`` (docs/design.md convention) by ``method``.
+
+    ``params``: ``verification`` and the method's own parameters, as for :class:`Stabilizer`.
+    """
     return Stabilizer(reference, method, **params).estimate(current)

@@ -14,6 +14,9 @@ import numpy as np
 DEFAULT_NEAR_M = 0.5
 #: Depths beyond this are treated as no measurement by the mapping.
 DEFAULT_FAR_M = 10.0
+#: Smallest side (pixels) of any frame; each method has its own, larger minimum
+#: (``stabilizer.api``, docs/method.md section 9, docs/peers.md "Image sizes").
+MIN_SIDE = 8
 
 
 def depth_to_disparity(
@@ -60,17 +63,29 @@ def depth_to_disparity(
     return gray
 
 
-def as_disparity(image: np.ndarray, name: str = "image") -> np.ndarray:
+def as_disparity(image: np.ndarray, name: str = "image", *, min_side: int = MIN_SIDE,
+                 max_side: int | None = None, method: str | None = None,
+                 reference_shape: tuple[int, int] | None = None) -> np.ndarray:
     """Check an input frame and return it as a uint8 disparity-like image.
+
+    The type, the dimensions, the dtype and the size are checked before anything is computed.
 
     Parameters
     ----------
     image : ndarray
         A 2-D uint8 disparity-like image (0 = invalid), or a 2-D float32/float64 depth image
-        in metres (converted by :func:`depth_to_disparity`), at least 8 x 8. Anything else is
-        a ValueError that says what was given and what is accepted.
+        in metres (converted by :func:`depth_to_disparity`). Anything else is a ValueError
+        that says what was given and what is accepted.
     name : str, optional
         What to call the frame in error messages. Default ``"image"``.
+    min_side, max_side : int, optional
+        Smallest and largest accepted height and width, in pixels. Defaults
+        :data:`MIN_SIDE` (8) and no maximum; ``stabilizer.Stabilizer`` passes its method's.
+    method : str, optional
+        The method the limits are for, named in the error message.
+    reference_shape : (int, int), optional
+        For a current frame: the reference's shape, which it must have (the reference was
+        checked against the limits; the message names both shapes).
 
     Returns
     -------
@@ -85,22 +100,47 @@ def as_disparity(image: np.ndarray, name: str = "image") -> np.ndarray:
             f"{name} must be a 2-D H x W array (uint8 disparity or float depth in metres); "
             f"got shape {image.shape}"
         )
-    if min(image.shape) < 8:
-        raise ValueError(f"{name} must be at least 8 x 8 pixels; got shape {image.shape}")
-    if image.dtype == np.uint8:
-        return image
-    if image.dtype in (np.float32, np.float64):
-        return depth_to_disparity(image)
-    raise ValueError(
-        f"{name} has dtype {image.dtype}; accepted: uint8 disparity-like image "
-        "(brighter = closer, 0 = invalid) or float32/float64 depth in metres"
-    )
+    if image.dtype not in (np.uint8, np.float32, np.float64):
+        raise ValueError(
+            f"{name} has dtype {image.dtype}; accepted: uint8 disparity-like image "
+            "(brighter = closer, 0 = invalid) or float32/float64 depth in metres"
+        )
+    if reference_shape is not None:
+        _check_shapes(reference_shape, image.shape)
+    else:
+        check_size(image.shape, name, min_side, max_side, method)
+    return image if image.dtype == np.uint8 else depth_to_disparity(image)
+
+
+def check_size(shape: tuple[int, int], name: str, min_side: int, max_side: int | None = None,
+               method: str | None = None) -> None:
+    """ValueError, in the user's terms, unless both sides of ``shape`` are within the limits.
+
+    The message names the frame's size (width x height and the array shape) and the accepted
+    range, for example "reference is 20 x 20 pixels (shape (20, 20)); method 't2fuzzy' needs
+    images of at least 96 x 96 pixels and at most 4096 x 4096 (the method table of
+    stabilizer.api)".
+    """
+    height, width = shape
+    if min_side <= min(height, width) and (max_side is None or max(height, width) <= max_side):
+        return
+    who = f"method {method!r}" if method else "the stabilizer"
+    limits = f"at least {min_side} x {min_side} pixels"
+    if max_side is not None:
+        limits += f" and at most {max_side} x {max_side}"
+    where = " (the method table of stabilizer.api)" if method else ""
+    raise ValueError(f"{name} is {width} x {height} pixels (shape {tuple(shape)}); {who} needs "
+                     f"images of {limits}{where}")
 
 
 def check_same_shape(reference: np.ndarray, current: np.ndarray) -> None:
     """ValueError unless the two frames have the same shape."""
-    if reference.shape != current.shape:
+    _check_shapes(reference.shape, current.shape)
+
+
+def _check_shapes(reference_shape: tuple[int, ...], current_shape: tuple[int, ...]) -> None:
+    if tuple(reference_shape) != tuple(current_shape):
         raise ValueError(
             f"reference and current frames must have the same shape; "
-            f"got {reference.shape} and {current.shape}"
+            f"got {tuple(reference_shape)} and {tuple(current_shape)}"
         )

@@ -85,6 +85,8 @@ NO_TRANSLATION = "no_translation_estimate"
 #: Half-width (pixels) of the translation search around a previous translation; a peak on its
 #: edge falls back to the whole range.
 NEAR_RADIUS_PX = 4
+#: Smallest side (pixels) of the correlation template of stage 6.
+TEMPLATE_MIN_SIDE = 8
 
 
 @dataclass(frozen=True)
@@ -284,7 +286,7 @@ class T2FuzzyEstimator:
                  refinements: Refinements = Refinements()):
         height, width = reference.shape
         max_shift = int(translation.max_shift_px)
-        if not (0 <= max_shift and 2 * max_shift + 8 <= min(height, width)):
+        if not (0 <= max_shift and self.min_side(translation) <= min(height, width)):
             raise ValueError(f"max_shift_px must leave a template of at least 8 x 8 pixels in a "
                              f"{width} x {height} image; got {translation.max_shift_px}")
         # Stages 1-2.
@@ -322,6 +324,13 @@ class T2FuzzyEstimator:
                                 if refinements.rotation_search else None)
 
         self._reference_analysis = self.analyse(reference)
+
+    @staticmethod
+    def min_side(translation: TranslationParams = TranslationParams(), **_other: Any) -> int:
+        """Smallest image side (pixels) with these parameters: the translation search takes
+        ``max_shift_px`` from every side and must leave a template of at least 8 x 8 pixels,
+        so 2 * ``max_shift_px`` + 8 (96 with the default 44; docs/method.md, section 9)."""
+        return 2 * int(translation.max_shift_px) + TEMPLATE_MIN_SIDE
 
     def analyse(self, image: np.ndarray, start: np.ndarray | None = None,
                 with_fits: bool = True) -> FrameAnalysis:

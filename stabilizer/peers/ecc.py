@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 from stabilizer.motion import Motion, motion_from_matrix, motion_matrix
-from stabilizer.peers.preparation import FramePreparation, frame_problem
+from stabilizer.peers.preparation import FramePreparation, frame_problem, peer_min_side
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
 
 
@@ -85,6 +85,9 @@ class EccEstimator:
     .. [1] G. D. Evangelidis and E. Z. Psarakis, "Parametric image alignment using enhanced
            correlation coefficient maximization", IEEE Trans. PAMI 30(10), 1858-1865, 2008.
     """
+
+    #: Smallest image side (pixels) whatever the parameters (docs/peers.md, "Image sizes").
+    min_side = staticmethod(peer_min_side)
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, levels: int = 3,
                  iterations: int = 50, epsilon: float = 1e-4, gauss_filter_size: int = 5,

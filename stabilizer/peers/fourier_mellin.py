@@ -53,7 +53,13 @@ import cv2
 import numpy as np
 
 from stabilizer.motion import Motion, compensate, rotation_matrix
-from stabilizer.peers.preparation import FramePreparation, frame_problem, zero_mean_float
+from stabilizer.peers.preparation import (
+    FramePreparation,
+    frame_problem,
+    even_dft_size,
+    peer_min_side,
+    zero_mean_float,
+)
 
 
 class FourierMellinEstimator:
@@ -93,6 +99,9 @@ class FourierMellinEstimator:
            1266-1271, 1996.
     """
 
+    #: Smallest image side (pixels) whatever the parameters (docs/peers.md, "Image sizes").
+    min_side = staticmethod(peer_min_side)
+
     def __init__(self, reference: np.ndarray, median_ksize: int = 0, angle_bins: int = 360,
                  radius_bins: int = 128, min_response: float = 0.1,
                  min_overlap_correlation: float = 0.8, clip_sigmas: float = 1.5,
@@ -116,6 +125,19 @@ class FourierMellinEstimator:
         self._reference = self._prepare(reference).copy()
         self._reference_float = zero_mean_float(self._reference)
         self._reference_log_polar = self._log_polar_spectrum(self._reference_float)
+        self._correlation_shape = tuple(even_dft_size(n) for n in reference.shape)
+        self._reference_windowed = self._windowed(self._reference_float)
+
+    def _windowed(self, image_float: np.ndarray) -> np.ndarray:
+        """``image_float`` times the Hanning window, zero-padded to even DFT sizes.
+
+        ``cv2.phaseCorrelate`` would pad to an odd size for some frames
+        (:func:`stabilizer.peers.preparation.even_dft_size`).
+        """
+        padded = np.zeros(self._correlation_shape, np.float32)
+        height, width = self._shape
+        padded[:height, :width] = image_float * self._window
+        return padded
 
     def _log_polar_spectrum(self, image_float: np.ndarray) -> np.ndarray:
         """Log-polar resampling of the high-passed magnitude spectrum, tapered along the
@@ -164,7 +186,7 @@ class FourierMellinEstimator:
         """(dx, dy, peak response) of ``current`` after turning it back by ``angle_deg``."""
         derotated = compensate(current, Motion(angle_deg, 0.0, 0.0))
         (shift_x, shift_y), response = cv2.phaseCorrelate(
-            self._reference_float, zero_mean_float(derotated), self._window)
+            self._reference_windowed, self._windowed(zero_mean_float(derotated)))
         dx, dy = rotation_matrix(math.radians(angle_deg)) @ np.array([shift_x, shift_y])
         return float(dx), float(dy), float(response)
 

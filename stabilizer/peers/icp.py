@@ -51,7 +51,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from stabilizer.motion import Motion, transform_points
-from stabilizer.peers.preparation import FramePreparation, frame_problem, valid_interior
+from stabilizer.peers.preparation import (
+    FramePreparation,
+    frame_problem,
+    peer_min_side,
+    valid_interior,
+)
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
 from stabilizer.rigid_fit import fit_rigid
 
@@ -121,6 +126,9 @@ class IcpEstimator:
            point algorithm", ICPR 2002.
     .. [4] T.-K. Kang, H. Zhang and G.-T. Park, MED 2009, Table I ("ICP").
     """
+
+    #: Smallest image side (pixels) whatever the parameters (docs/peers.md, "Image sizes").
+    min_side = staticmethod(peer_min_side)
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, canny_low: float = 20.0,
                  canny_high: float = 40.0, border_margin_px: int = 2, max_points: int = 1000,

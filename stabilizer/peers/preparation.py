@@ -18,6 +18,16 @@ import numpy as np
 
 #: A frame needs at least this many valid (non-zero) pixels to show any scene.
 MIN_VALID_PIXELS = 64
+#: Smallest image side (pixels) of every peer. The start search works at half resolution and
+#: ECC's coarsest level at a quarter, and a frame must hold enough depth steps for edges,
+#: keypoints and the trust check: smaller frames gave "ok" estimates of motions that were not
+#: there (docs/peers.md, "Image sizes").
+MIN_SIDE = 64
+
+
+def peer_min_side(**_params) -> int:
+    """Smallest image side of a peer, :data:`MIN_SIDE` whatever its parameters."""
+    return MIN_SIDE
 
 
 def frame_problem(image: np.ndarray, role: str) -> str | None:
@@ -144,6 +154,19 @@ def zero_mean_float(image: np.ndarray) -> np.ndarray:
     valid = image > 0
     mean = float(image[valid].mean()) if valid.any() else 0.0
     return np.where(valid, image.astype(np.float32) - np.float32(mean), np.float32(0.0))
+
+
+def even_dft_size(size: int) -> int:
+    """The smallest even size >= ``size`` that ``cv2.getOptimalDFTSize`` returns.
+
+    ``cv2.phaseCorrelate`` zero-pads its inputs to ``cv2.getOptimalDFTSize``; when that size is
+    odd (125 for 122 pixels) its peak is off by half a pixel, so identical frames seem moved.
+    Inputs padded to an even DFT size first are correlated without that bias.
+    """
+    optimal = cv2.getOptimalDFTSize(size)
+    while optimal % 2:
+        optimal = cv2.getOptimalDFTSize(optimal + 1)
+    return optimal
 
 
 def check_median_ksize(median_ksize: int) -> None:

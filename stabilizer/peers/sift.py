@@ -32,6 +32,7 @@ from stabilizer.peers.preparation import (
     check_median_ksize,
     denoised,
     frame_problem,
+    peer_min_side,
     valid_interior,
 )
 from stabilizer.rigid_fit import fit_rigid
@@ -78,6 +79,9 @@ class SiftEstimator:
            humanoid robot for the environment recognition by type-2 fuzzy logic", MED 2009,
            Table I ("SIFT").
     """
+
+    #: Smallest image side (pixels) whatever the parameters (docs/peers.md, "Image sizes").
+    min_side = staticmethod(peer_min_side)
 
     def __init__(self, reference: np.ndarray, median_ksize: int = 5, ratio: float = 0.75,
                  ransac_threshold_px: float = 3.0, min_inliers: int = 3,

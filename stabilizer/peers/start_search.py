@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from stabilizer.motion import Motion, image_centre, rotation_matrix
-from stabilizer.peers.preparation import zero_mean_float
+from stabilizer.peers.preparation import even_dft_size, zero_mean_float
 
 #: Start angles (degrees): the walking camera's turns of up to about +-12 degrees, with margin.
 START_ANGLES_DEG = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
@@ -43,10 +43,20 @@ class StartSearch:
         if not angles_deg:
             raise ValueError("angles_deg must hold at least one angle")
         self.angles_deg = tuple(angles_deg)
-        self._reference = cv2.pyrDown(zero_mean_float(reference))
-        self._window = cv2.createHanningWindow(self._reference.shape[::-1], cv2.CV_32F)
+        reference_half = cv2.pyrDown(zero_mean_float(reference))
+        self._window = cv2.createHanningWindow(reference_half.shape[::-1], cv2.CV_32F)
+        self._padded_shape = tuple(even_dft_size(n) for n in reference_half.shape)
+        self._reference = self._windowed(reference_half)
         # pyrDown maps full-resolution x to x / 2, so the image centre c to c / 2.
         self._half_centre = tuple(value / 2.0 for value in image_centre(reference.shape))
+
+    def _windowed(self, image_half: np.ndarray) -> np.ndarray:
+        """``image_half`` times the Hanning window, zero-padded to even DFT sizes (an odd size
+        biases ``cv2.phaseCorrelate`` by half a pixel, :func:`even_dft_size`)."""
+        padded = np.zeros(self._padded_shape, np.float32)
+        height, width = image_half.shape
+        padded[:height, :width] = image_half * self._window
+        return padded
 
     def ranked(self, current: np.ndarray) -> list[tuple[Motion, float]]:
         """(start Motion, phase-correlation response) for every angle, best response first.
@@ -63,7 +73,7 @@ class StartSearch:
             # Turning the frame back by a: warp with the rotation by -a about the centre.
             turn_back = cv2.getRotationMatrix2D(self._half_centre, -angle, 1.0)
             derotated = cv2.warpAffine(current_half, turn_back, size, flags=cv2.INTER_LINEAR)
-            shift_half, response = cv2.phaseCorrelate(self._reference, derotated, self._window)
+            shift_half, response = cv2.phaseCorrelate(self._reference, self._windowed(derotated))
             shift = rotation_matrix(math.radians(angle)) @ (2.0 * np.asarray(shift_half))
             starts.append((Motion(angle, float(shift[0]), float(shift[1])), float(response)))
         return sorted(starts, key=lambda start: -start[1])

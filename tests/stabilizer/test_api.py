@@ -43,6 +43,13 @@ def test_unknown_parameter_is_rejected():
 def test_bad_parameter_value_is_a_value_error():
     with pytest.raises(ValueError, match="max_shift_px"):
         stabilizer.estimate(REFERENCE, REFERENCE,
+                            translation=TranslationParams(max_shift_px=-5))
+
+
+def test_a_search_range_too_large_for_the_frame_names_the_sizes():
+    """t2fuzzy's smallest side is 2 * max_shift_px + 8: 168 for a range of 80 px."""
+    with pytest.raises(ValueError, match="176 x 144 pixels.*at least 168 x 168 pixels"):
+        stabilizer.estimate(REFERENCE, REFERENCE,
                             translation=TranslationParams(max_shift_px=80))
 
 
