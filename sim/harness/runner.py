@@ -181,12 +181,25 @@ class SimulatedFrames:
     def __iter__(self):
         from sim.harness.sequence import decoded_frame, encode_frame
 
-        no_surface_m = self.sensor.tof.no_surface_depth_m
+        no_surface_m, unit_m = self.sensor.tof.no_surface_depth_m, self.depth_unit_m
         for frame in walk_frames(self.scenario, self.robot, self.sensor, self.n_frames):
-            encoded = encode_frame(frame, no_surface_m)
+            encoded = encode_frame(frame, no_surface_m, unit_m)
             yield SourceFrame(
-                decoded_frame(frame.index, frame.time_s, frame.cam_pos, frame.cam_mat, encoded),
+                decoded_frame(frame.index, frame.time_s, frame.cam_pos, frame.cam_mat, encoded,
+                              unit_m),
                 self.robot.gait_cycle, self.robot.torso_pose()[0], encoded)
+
+    @property
+    def depth_unit_m(self) -> float:
+        """Metres per unit of the stored reported depth: the finest that holds the farthest
+        depth this sensor can report (its range limit, its unambiguous range when it wraps,
+        at most the render's no-surface depth)."""
+        from sim.harness.sequence import reported_depth_unit_m
+
+        params = self.sensor.tof.params
+        farthest = min(params.max_range_m, self.sensor.tof.no_surface_depth_m,
+                       params.unambiguous_range_m if params.phase_wrapping else math.inf)
+        return reported_depth_unit_m(farthest)
 
 
 class ReferencePolicy:
@@ -445,7 +458,7 @@ def record(config: RecordConfig) -> dict:
     re-raised.
     """
     from sim.harness.provenance import provenance
-    from sim.harness.sequence import (DEPTH_UNIT_M, EXACT_DEPTH_UNIT_M, RecordedFall,
+    from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, RecordedFall,
                                       SequenceWriter, TruthRow)
 
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
@@ -464,7 +477,8 @@ def record(config: RecordConfig) -> dict:
                                    "cx": float(intrinsics.cx), "cy": float(intrinsics.cy),
                                    "width": int(intrinsics.width),
                                    "height": int(intrinsics.height)},
-                    "depth_unit_m": DEPTH_UNIT_M, "exact_depth_unit_m": EXACT_DEPTH_UNIT_M,
+                    "depth_unit_m": source.depth_unit_m,
+                    "exact_depth_unit_m": EXACT_DEPTH_UNIT_M,
                     "reference_policy": scenario.evaluation.reference,
                     "provenance": provenance()})
                 for item in source:

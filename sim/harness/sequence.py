@@ -31,9 +31,12 @@ from stabilizer import depth_to_disparity
 #: The format's name and version, as sequence.json's "format" states them.
 FORMAT_NAME, FORMAT_VERSION = "egostab-sequence", 1
 FORMAT = f"{FORMAT_NAME}/{FORMAT_VERSION}"
-#: Metres per unit of the reported depth PNGs (depth/) and of the exact depth PNGs (exact/).
-DEPTH_UNIT_M = 1e-4
+#: Metres per unit of the reported depth PNGs (depth/) of a sensor that reports at most 6.55 m
+#: (every SR4000 preset: finer than its 14-bit step of 0.3 mm), and of the exact depth PNGs
+#: (exact/) and the reported depth of a sensor without a range limit (up to 32.7 m).
+FINE_DEPTH_UNIT_M = 1e-4
 EXACT_DEPTH_UNIT_M = 5e-4
+DEPTH_UNITS_M = (FINE_DEPTH_UNIT_M, EXACT_DEPTH_UNIT_M)
 #: Largest value of a 16-bit PNG.
 UINT16_MAX = 65535
 #: Files and folders of a sequence.
@@ -66,6 +69,13 @@ class EncodedFrame:
     exact: np.ndarray
 
 
+def reported_depth_unit_m(farthest_reported_m: float) -> float:
+    """Metres per unit of the reported depth PNGs of a sensor that reports at most
+    ``farthest_reported_m``: the finest unit that holds it."""
+    return FINE_DEPTH_UNIT_M if farthest_reported_m <= UINT16_MAX * FINE_DEPTH_UNIT_M \
+        else EXACT_DEPTH_UNIT_M
+
+
 def _to_units(depth_m: np.ndarray, keep: np.ndarray, unit_m: float, what: str) -> np.ndarray:
     units = np.where(keep, np.rint(np.where(keep, depth_m, 0.0) / unit_m), 0.0)
     largest = float(units.max(initial=0.0))
@@ -75,14 +85,15 @@ def _to_units(depth_m: np.ndarray, keep: np.ndarray, unit_m: float, what: str) -
     return units.astype(np.uint16)
 
 
-def encode_frame(frame: Frame, no_surface_depth_m: float) -> EncodedFrame:
-    """The stored images of ``frame``: reported depth where ``valid``, exact depth where a
-    surface was rendered (below ``no_surface_depth_m``, the render's no-surface depth)."""
+def encode_frame(frame: Frame, no_surface_depth_m: float, depth_unit_m: float) -> EncodedFrame:
+    """The stored images of ``frame``: reported depth where ``valid`` (in ``depth_unit_m``),
+    exact depth where a surface was rendered (below ``no_surface_depth_m``, the render's
+    no-surface depth)."""
     depth = np.asarray(frame.depth_m, dtype=np.float64)
     exact = np.asarray(frame.true_depth_m, dtype=np.float64)
     surface = np.isfinite(exact) & (exact > 0) & (exact < no_surface_depth_m)
     return EncodedFrame(
-        _to_units(depth, np.asarray(frame.valid) & np.isfinite(depth), DEPTH_UNIT_M,
+        _to_units(depth, np.asarray(frame.valid) & np.isfinite(depth), depth_unit_m,
                   f"frame {frame.index}'s reported depth"),
         _to_units(exact, surface, EXACT_DEPTH_UNIT_M, f"frame {frame.index}'s exact depth"))
 
@@ -91,9 +102,10 @@ def _from_units(units: np.ndarray, unit_m: float) -> np.ndarray:
     return (units.astype(np.float64) * unit_m).astype(np.float32)
 
 
-def decoded_frame(index: int, time_s: float, cam_pos, cam_mat, encoded: EncodedFrame) -> Frame:
+def decoded_frame(index: int, time_s: float, cam_pos, cam_mat, encoded: EncodedFrame,
+                  depth_unit_m: float) -> Frame:
     """The Frame a sequence gives back for the stored images and pose (what every score sees)."""
-    depth = _from_units(encoded.depth, DEPTH_UNIT_M)
+    depth = _from_units(encoded.depth, depth_unit_m)
     return Frame(index=int(index), time_s=float(time_s), depth_m=depth, valid=encoded.depth > 0,
                  disparity8=depth_to_disparity(depth),
                  cam_pos=np.asarray(cam_pos, dtype=np.float64),
@@ -241,7 +253,7 @@ class LoadedSequence:
         exact depth (all 0: no surface), which only the ground truth needs."""
         row = self.rows[index]
         return decoded_frame(row.frame, row.time_s, row.cam_pos, row.cam_mat,
-                             self.encoded(index, exact))
+                             self.encoded(index, exact), self.header["depth_unit_m"])
 
     def _read_png(self, folder: str, index: int) -> np.ndarray:
         import cv2
@@ -333,6 +345,13 @@ def load_sequence(path: str | Path) -> LoadedSequence:
                                          ("width", "height", "fx", "fy", "cx", "cy")})
         scenario, fall = header["scenario"], header.get("fall")
         fall = None if fall is None else RecordedFall(float(fall["time_s"]), str(fall["reason"]))
+        if header["depth_unit_m"] not in DEPTH_UNITS_M \
+                or header["exact_depth_unit_m"] != EXACT_DEPTH_UNIT_M:
+            raise FileValueError(str(json_path), "depth_unit_m",
+                                 f"is {header['depth_unit_m']!r} / "
+                                 f"{header['exact_depth_unit_m']!r}",
+                                 f"depth_unit_m one of {DEPTH_UNITS_M}, exact_depth_unit_m "
+                                 f"{EXACT_DEPTH_UNIT_M}")
     except (KeyError, TypeError, ValueError) as error:
         raise FileValueError(str(json_path), "content", f"lacks or mangles {error}",
                              "the keys of docs/sequence-format.md") from None

@@ -113,3 +113,16 @@ def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path, monke
     sequence = load_sequence(tmp_path / "seq")
     assert sequence.n_frames == 3 and sequence.ended == "interrupted"
     assert not list((tmp_path / "seq").rglob(".*.tmp"))
+
+
+def test_a_sensor_without_range_limit_is_stored_in_the_coarser_unit(tmp_path):
+    from sim.harness.sequence import EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M
+
+    header = record(RecordConfig(scenario="noiseless_sensor", out_dir=str(tmp_path / "s"),
+                                 max_frames=2))
+    assert header["depth_unit_m"] == EXACT_DEPTH_UNIT_M  # it sees the corridor's far room
+    frame = load_sequence(tmp_path / "s").frame(0)
+    assert float(frame.depth_m.max()) > 65535 * FINE_DEPTH_UNIT_M
+    sr4000 = record(RecordConfig(scenario=str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"),
+                                 out_dir=str(tmp_path / "r"), max_frames=1))
+    assert sr4000["depth_unit_m"] == FINE_DEPTH_UNIT_M
