@@ -38,12 +38,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
+from sim.harness.methods import ACCEPTED_FORMS
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
-from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
-from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key, is_int,
-                                    is_safe_name, read_toml)
+from sim.harness.runset import (check_header, check_methods, checked_overrides,
+                                read_runset_file, resolve_scenario_entry)
+from sim.harness.scenario import ScenarioError, load_scenario
+from sim.harness.validation import FileValueError, distinct_list, is_int
 
 #: Scenario keys a suite sets from its lists; overrides may not set them.
 VARIED_KEYS = ("gait.preset", "scene_seed", "seed")
@@ -125,13 +126,8 @@ class SuiteSpec:
 
 def load_suite(path: str | os.PathLike) -> SuiteSpec:
     """Read and validate a suite file; relative scenario paths are taken from its folder."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no suite file {path}; accepted: a suite TOML file (see "
-                                "scenarios/suites/)")
-    raw = read_toml(path, SuiteError)
-    raw.setdefault("name", safe_name(path.stem))
-    return suite_from_dict(raw, source=str(path), base_dir=path.parent)
+    raw = read_runset_file(path, SuiteError, "suite")
+    return suite_from_dict(raw, source=str(path), base_dir=Path(path).parent)
 
 
 def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
@@ -140,27 +136,10 @@ def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
     def fail(key: str, problem: str) -> SuiteError:
         return SuiteError(source, key, problem, ALLOWED[key.split("[")[0]])
 
-    for key in raw:
-        if key not in ALLOWED:
-            raise SuiteError(source, str(key), "unknown key", f"keys {', '.join(ALLOWED)}")
-    for key in _REQUIRED:
-        if key not in raw:
-            raise fail(key, "missing")
-    name = raw.get("name", "suite")
-    if not is_safe_name(name):
-        raise fail("name", f"got {name!r}")
-    description = raw.get("description", "")
-    if not isinstance(description, str):
-        raise fail("description", f"got {description!r}")
-    max_frames = raw.get("max_frames")
-    if max_frames is not None and not (is_int(max_frames) and max_frames >= 1):
-        raise fail("max_frames", f"got {max_frames!r}")
-    record = raw.get("record", False)
-    if not isinstance(record, bool):
-        raise fail("record", f"got {record!r}")
+    header = check_header(raw, ALLOWED, _REQUIRED, SuiteError, source, fail, "suite")
     methods = distinct_list(raw["methods"], "methods", fail, lambda v: isinstance(v, str))
-    _check_methods(methods, fail)
-    overrides = _checked_overrides(raw.get("overrides", {}), "overrides", fail)
+    check_methods(methods, fail)
+    overrides = checked_overrides(raw.get("overrides", {}), "overrides", VARIED_KEYS, fail)
 
     entries = raw["sequences"]
     if not isinstance(entries, list) or not entries:
@@ -173,9 +152,9 @@ def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
                 raise SuiteError(source, f"sequences[{index}]", f"sequence {sequence.name} is "
                                  "listed twice", "each template, gait, scene seed and seed once")
             sequences.append(sequence)
-    return SuiteSpec(name=name, methods=methods, sequences=tuple(sequences),
-                     max_frames=max_frames, record=record, description=description,
-                     source=source)
+    return SuiteSpec(name=header.name, methods=methods, sequences=tuple(sequences),
+                     max_frames=header.max_frames, record=header.record,
+                     description=header.description, source=source)
 
 
 def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Path,
@@ -195,8 +174,8 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
     for key in _SEQUENCE_REQUIRED:
         if key not in entry:
             raise fail(key, "missing")
-    scenario = _resolve_scenario(entry["scenario"], base_dir, fail)
-    own_overrides = _checked_overrides(entry.get("overrides", {}), "overrides", fail)
+    scenario = resolve_scenario_entry(entry["scenario"], "scenario", base_dir, fail)
+    own_overrides = checked_overrides(entry.get("overrides", {}), "overrides", VARIED_KEYS, fail)
     overrides = {**suite_overrides, **own_overrides}
     try:
         template = load_scenario(scenario, overrides)
@@ -229,37 +208,3 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
     return sequences
 
 
-def _check_methods(methods: tuple[str, ...], fail: Fail) -> None:
-    """Every method resolves now (built-in, entry point or import path), before any run."""
-    for index, name in enumerate(methods):
-        try:
-            method_factory(name)
-        except MethodError as error:
-            raise fail(f"methods[{index}]", f"method {name!r}: {error.problem}") from None
-
-
-def _checked_overrides(overrides: Any, key: str, fail: Fail) -> dict:
-    """An overrides table as a dict: single values under dotted keys, not the varied ones."""
-    if not isinstance(overrides, Mapping):
-        raise fail(key, f"got {overrides!r}")
-    for dotted, value in overrides.items():
-        if dotted in VARIED_KEYS or not is_dotted_key(str(dotted)):
-            raise fail(key, f"key {dotted!r} is not allowed here (gait.preset, scene_seed and "
-                            "seed come from the sequence lists)")
-        if isinstance(value, Mapping):  # it would replace the scenario's whole table
-            raise fail(key, f"{dotted!r} is a table; write one dotted key per value, "
-                            f"e.g. \"{dotted}.{next(iter(value), 'field')}\" = ...")
-    return dict(overrides)
-
-
-def _resolve_scenario(entry: Any, base_dir: Path, fail: Fail) -> str:
-    """A shipped name stays a name; a path becomes absolute (from the suite file's folder)."""
-    if not isinstance(entry, str) or not entry.strip():
-        raise fail("scenario", f"got {entry!r}")
-    is_path = entry.endswith(".toml") or "/" in entry or os.sep in entry
-    target = Path(entry) if Path(entry).is_absolute() or not is_path else base_dir / entry
-    try:
-        found = resolve_scenario_path(str(target))
-    except FileNotFoundError as error:
-        raise fail("scenario", str(error)) from None
-    return str(found.resolve()) if is_path else entry

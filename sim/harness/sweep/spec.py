@@ -34,12 +34,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
+from sim.harness.methods import ACCEPTED_FORMS
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
-from sim.harness.scenario import ScenarioError, load_scenario, resolve_scenario_path
-from sim.harness.validation import (Fail, FileValueError, distinct_list, is_dotted_key,
-                                    is_finite_number, is_int, is_safe_name, read_toml)
+from sim.harness.runset import (check_header, check_methods, checked_overrides,
+                                read_runset_file, resolve_scenario_entry)
+from sim.harness.scenario import ScenarioError, load_scenario
+from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key,
+                                    is_finite_number, is_int)
 
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
 #: Keys of a sweep file -> what is allowed (the module docstring shows them in use).
@@ -103,13 +105,8 @@ def scenario_label(scenario: str) -> str:
 
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
     """Read and validate a sweep file; relative scenario paths are taken from its folder."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no sweep file {path}; accepted: a sweep TOML file (see "
-                                "scenarios/sweeps/)")
-    raw = read_toml(path, SweepError)
-    raw.setdefault("name", safe_name(path.stem))
-    return sweep_from_dict(raw, source=str(path), base_dir=path.parent)
+    raw = read_runset_file(path, SweepError, "sweep")
+    return sweep_from_dict(raw, source=str(path), base_dir=Path(path).parent)
 
 
 def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
@@ -118,28 +115,12 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
     def fail(key: str, problem: str) -> SweepError:
         return SweepError(source, key, problem, ALLOWED[key.split("[")[0]])
 
-    for key in raw:
-        if key not in ALLOWED:
-            raise SweepError(source, str(key), "unknown key", f"keys {', '.join(ALLOWED)}")
-    for key in _REQUIRED:
-        if key not in raw:
-            raise fail(key, "missing")
-    name = raw.get("name", "sweep")
-    if not is_safe_name(name):
-        raise fail("name", f"got {name!r}")
-    description = raw.get("description", "")
-    if not isinstance(description, str):
-        raise fail("description", f"got {description!r}")
+    header = check_header(raw, ALLOWED, _REQUIRED, SweepError, source, fail, "sweep")
     noise_key = raw.get("noise_key", DEFAULT_NOISE_KEY)
     if not is_dotted_key(noise_key) or noise_key == "seed":
         raise fail("noise_key", f"got {noise_key!r}")
-    max_frames = raw.get("max_frames")
-    if max_frames is not None and not (is_int(max_frames) and max_frames >= 1):
-        raise fail("max_frames", f"got {max_frames!r}")
-    record = raw.get("record", False)
-    if not isinstance(record, bool):
-        raise fail("record", f"got {record!r}")
-    overrides = _checked_overrides(raw.get("overrides", {}), noise_key, fail)
+    overrides = checked_overrides(raw.get("overrides", {}), "overrides", ("seed", noise_key),
+                                  fail)
 
     scenarios = distinct_list(raw["scenarios"], "scenarios", fail,
                               lambda v: isinstance(v, str) and bool(v.strip()))
@@ -149,50 +130,16 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
     methods = raw.get("methods")
     if methods is not None:
         methods = distinct_list(methods, "methods", fail, lambda v: isinstance(v, str))
-        _check_methods(methods, fail)
+        check_methods(methods, fail)
 
-    resolved = tuple(_resolve_scenario(entry, index, Path(base_dir), fail)
+    resolved = tuple(resolve_scenario_entry(entry, f"scenarios[{index}]", Path(base_dir), fail)
                      for index, entry in enumerate(scenarios))
-    spec = SweepSpec(name=name, scenarios=resolved, seeds=seeds, noise_levels=noise_levels,
-                     noise_key=noise_key, methods=methods, max_frames=max_frames,
-                     record=record, overrides=overrides, description=description,
-                     source=source)
+    spec = SweepSpec(name=header.name, scenarios=resolved, seeds=seeds,
+                     noise_levels=noise_levels, noise_key=noise_key, methods=methods,
+                     max_frames=header.max_frames, record=header.record, overrides=overrides,
+                     description=header.description, source=source)
     _check_runs_load(spec)
     return spec
-
-
-def _check_methods(methods: tuple[str, ...], fail: Fail) -> None:
-    """Every method resolves now (built-in, entry point or import path), before any run."""
-    for index, name in enumerate(methods):
-        try:
-            method_factory(name)
-        except MethodError as error:
-            raise fail(f"methods[{index}]", f"method {name!r}: {error.problem}") from None
-
-
-def _checked_overrides(overrides: Any, noise_key: str, fail: Fail) -> dict:
-    """The ``[overrides]`` table as a dict: single values under dotted keys, not the swept ones."""
-    if not isinstance(overrides, Mapping):
-        raise fail("overrides", f"got {overrides!r}")
-    for key, value in overrides.items():
-        if key in ("seed", noise_key) or not is_dotted_key(str(key)):
-            raise fail("overrides", f"key {key!r} is not allowed here (seed and {noise_key} "
-                                    "come from the sweep's lists)")
-        if isinstance(value, Mapping):  # it would replace the scenario's whole table
-            raise fail("overrides", f"{key!r} is a table; write one dotted key per value, "
-                                    f"e.g. \"{key}.{next(iter(value), 'field')}\" = ...")
-    return dict(overrides)
-
-
-def _resolve_scenario(entry: str, index: int, base_dir: Path, fail: Fail) -> str:
-    """A shipped name stays a name; a path becomes absolute (from the sweep file's folder)."""
-    is_path = entry.endswith(".toml") or "/" in entry or os.sep in entry
-    target = Path(entry) if Path(entry).is_absolute() or not is_path else base_dir / entry
-    try:
-        found = resolve_scenario_path(str(target))
-    except FileNotFoundError as error:
-        raise fail(f"scenarios[{index}]", str(error)) from None
-    return str(found.resolve()) if is_path else entry
 
 
 def _check_runs_load(spec: SweepSpec) -> None:

@@ -1,0 +1,104 @@
+"""What sweep and suite files share: the file itself, the header keys, the methods, the
+overrides table and the scenario entries, each checked the same way.
+
+A sweep (sim/harness/sweep/spec.py) and a suite (sim/harness/suite/spec.py) both describe a set
+of walking runs; they differ in how they vary the runs, and share the rest.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sim.harness.methods import MethodError, method_factory
+from sim.harness.report import safe_name
+from sim.harness.scenario import resolve_scenario_path
+from sim.harness.validation import (Fail, FileValueError, is_dotted_key, is_int, is_safe_name,
+                                    read_toml)
+
+
+def read_runset_file(path: str | os.PathLike, error: type[FileValueError], kind: str) -> dict:
+    """The tables of a ``kind`` file ("sweep", "suite"), named after the file unless it says."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no {kind} file {path}; accepted: a {kind} TOML file (see "
+                                f"scenarios/{kind}s/)")
+    raw = read_toml(path, error)
+    raw.setdefault("name", safe_name(path.stem))
+    return raw
+
+
+@dataclass(frozen=True)
+class RunsetHeader:
+    """The keys every sweep and suite file has: its name and description, the frames each run
+    walks at most (None: the scenario's duration), whether runs write a recording."""
+
+    name: str
+    description: str
+    max_frames: int | None
+    record: bool
+
+
+def check_header(raw: Mapping[str, Any], allowed: Mapping[str, str], required: tuple[str, ...],
+                 error: type[FileValueError], source: str, fail: Fail,
+                 default_name: str) -> RunsetHeader:
+    """Refuse unknown and missing keys; check name, description, max_frames and record."""
+    for key in raw:
+        if key not in allowed:
+            raise error(source, str(key), "unknown key", f"keys {', '.join(allowed)}")
+    for key in required:
+        if key not in raw:
+            raise fail(key, "missing")
+    name = raw.get("name", default_name)
+    if not is_safe_name(name):
+        raise fail("name", f"got {name!r}")
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        raise fail("description", f"got {description!r}")
+    max_frames = raw.get("max_frames")
+    if max_frames is not None and not (is_int(max_frames) and max_frames >= 1):
+        raise fail("max_frames", f"got {max_frames!r}")
+    record = raw.get("record", False)
+    if not isinstance(record, bool):
+        raise fail("record", f"got {record!r}")
+    return RunsetHeader(name, description, max_frames, record)
+
+
+def check_methods(methods: tuple[str, ...], fail: Fail) -> None:
+    """Every method resolves now (built-in, entry point or import path), before any run."""
+    for index, name in enumerate(methods):
+        try:
+            method_factory(name)
+        except MethodError as problem:
+            raise fail(f"methods[{index}]", f"method {name!r}: {problem.problem}") from None
+
+
+def checked_overrides(overrides: Any, key: str, varied: tuple[str, ...], fail: Fail) -> dict:
+    """An overrides table as a dict: single values under dotted keys, none of the ``varied``
+    keys (those come from the file's lists)."""
+    if not isinstance(overrides, Mapping):
+        raise fail(key, f"got {overrides!r}")
+    for dotted, value in overrides.items():
+        if dotted in varied or not is_dotted_key(str(dotted)):
+            raise fail(key, f"key {dotted!r} is not allowed here ({', '.join(varied)} come "
+                            "from the file's lists)")
+        if isinstance(value, Mapping):  # it would replace the scenario's whole table
+            raise fail(key, f"{dotted!r} is a table; write one dotted key per value, "
+                            f"e.g. \"{dotted}.{next(iter(value), 'field')}\" = ...")
+    return dict(overrides)
+
+
+def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> str:
+    """A shipped scenario name stays a name; a path becomes absolute (from the file's folder)."""
+    if not isinstance(entry, str) or not entry.strip():
+        raise fail(key, f"got {entry!r}")
+    is_path = entry.endswith(".toml") or "/" in entry or os.sep in entry
+    target = Path(entry) if Path(entry).is_absolute() or not is_path else base_dir / entry
+    try:
+        found = resolve_scenario_path(str(target))
+    except FileNotFoundError as problem:
+        raise fail(key, str(problem)) from None
+    return str(found.resolve()) if is_path else entry
