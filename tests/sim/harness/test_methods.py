@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sim.harness.cli import build_parser, main
-from sim.harness.methods import (ENTRY_POINT_GROUP, MethodError, PluginStabilizer, as_motion,
+from sim.harness.methods import (ENTRY_POINT_GROUP, MethodError, as_motion,
                                  list_methods, method_factory)
 from sim.harness.runner import timed_estimate
 from sim.harness.scenario import ScenarioError, load_scenario
