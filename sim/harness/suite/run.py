@@ -1,9 +1,13 @@
-"""Running a suite: one run per sequence on the sweep's machinery, resumable, then the tables.
+"""Running a suite: one job per sequence on the sweep's machinery, resumable, then the tables.
 
-Each sequence is one ``sim.harness.runner.run`` scoring every method of the suite on the same
-frames, in ``<out_dir>/runs/<sequence>/``. The runs go to the sweep's executors (a local
-``spawn`` process pool, or Ray), and a run whose metrics.json says "complete" or "fell" is
-skipped, by the sweep's rule, so an interrupted suite is resumed by running it again.
+Each sequence is recorded once as a sequence folder (``<out_dir>/runs/<sequence>/sequence/``,
+docs/sequence-format.md), then every method of the suite is scored on it
+(``<out_dir>/runs/<sequence>/``: the run folder of ``egostab score``, with the figures
+``egostab run`` would give); anyone can score more methods on the same sequences later with
+``egostab score``. The jobs go to the sweep's executors (a local ``spawn`` process pool, or
+Ray), and a job whose metrics.json says "complete" or "fell" is skipped, by the sweep's rule,
+so an interrupted suite is resumed by running it again (a sequence already recorded to its end
+is not recorded again).
 """
 
 from __future__ import annotations
@@ -13,11 +17,40 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from sim.harness.runner import RunConfig, run
+from sim.harness.runner import RunConfig
 from sim.harness.suite.spec import SuiteSequence, SuiteSpec
 from sim.harness.suite.tables import SuiteResult, write_suite_outputs
 from sim.harness.sweep.execute import execute_plan
 from sim.harness.sweep.plan import RUNS_FOLDER
+
+
+#: Sub-folder of a sequence's run folder that holds its recorded sequence.
+SEQUENCE_FOLDER = "sequence"
+
+
+def record_then_score(config: RunConfig) -> dict:
+    """One sequence of a suite: record it (unless a finished recording is there), then score
+    ``config.methods`` on it; returns the run's metrics, as ``sim.harness.runner.run`` would."""
+    from sim.harness.runner import RecordConfig, record
+    from sim.harness.score import ScoreConfig, score
+    from sim.harness.sequence import SEQUENCE_JSON
+
+    sequence = Path(config.out_dir) / SEQUENCE_FOLDER
+    if not _recorded_to_its_end(sequence / SEQUENCE_JSON):
+        record(RecordConfig(config.scenario, str(sequence), max_frames=config.max_frames,
+                            seed=config.seed, overrides=config.overrides))
+    return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
+                             record=config.record))
+
+
+def _recorded_to_its_end(sequence_json: Path) -> bool:
+    import json
+
+    try:
+        return json.loads(sequence_json.read_text(encoding="utf-8")).get("ended") in (
+            "complete", "fell")
+    except (OSError, ValueError):
+        return False
 
 
 @dataclass(frozen=True)
@@ -46,7 +79,8 @@ def default_suite_dir(spec: SuiteSpec, results: str | os.PathLike = "results") -
 
 def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local",
               workers: int | None = None, ray_address: str | None = None,
-              run_fn: Callable[[RunConfig], dict] = run, progress: bool = False) -> SuiteResult:
+              run_fn: Callable[[RunConfig], dict] = record_then_score,
+              progress: bool = False) -> SuiteResult:
     """Run every sequence of ``spec`` not yet done, then write suite.md, suite.csv, suite.json.
 
     Args:

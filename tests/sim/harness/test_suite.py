@@ -320,3 +320,22 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     again = (out / TABLE_MD).read_text()
     assert "2 finished (2 already done before this call)" in again
     assert json.loads((out / TABLE_JSON).read_text())["means"] == document["means"]
+
+
+def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
+    from sim.harness.runner import RunConfig, run
+    from sim.harness.sequence import load_sequence
+    from sim.harness.suite.run import SEQUENCE_FOLDER, record_then_score
+
+    config = RunConfig(scenario=str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"),
+                       out_dir=str(tmp_path / "job"), methods=("ecc",), record=False,
+                       max_frames=12, overrides={"scene_seed": 3})
+    scored = record_then_score(config)
+    assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 12
+    direct = run(RunConfig(**{**config.__dict__, "out_dir": str(tmp_path / "run")}))
+    run_errors = direct["summary"]["run"]["ecc"]["errors"]
+    assert scored["summary"]["run"]["ecc"]["errors"] == run_errors
+    # A job resumed after its scoring was cut short scores the recording it has.
+    recorded = (tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").stat().st_mtime_ns
+    assert record_then_score(config)["summary"]["run"]["ecc"]["errors"] == run_errors
+    assert (tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").stat().st_mtime_ns == recorded
