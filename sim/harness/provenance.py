@@ -30,18 +30,26 @@ PACKAGES = {
 SOURCE_ROOT = Path(__file__).resolve().parents[2]
 
 
-def package_versions() -> dict[str, str | None]:
-    """Reported name -> installed version (None when not installed), plus Python's version."""
-    versions: dict[str, str | None] = {"python": platform.python_version()}
+@lru_cache(maxsize=1)
+def _installed_versions() -> tuple[tuple[str, str | None], ...]:
+    versions = []
     for name, distributions in PACKAGES.items():
-        versions[name] = None
+        version = None
         for distribution in distributions:
             try:
-                versions[name] = metadata.version(distribution)
+                version = metadata.version(distribution)
                 break
             except metadata.PackageNotFoundError:
                 continue
-    return versions
+        versions.append((name, version))
+    return tuple(versions)
+
+
+def package_versions() -> dict[str, str | None]:
+    """Reported name -> installed version (None when not installed), plus Python's version.
+
+    Read once per process: the installed packages do not change under a running job."""
+    return {"python": platform.python_version(), **dict(_installed_versions())}
 
 
 def _git(*args: str, cwd: Path) -> str | None:
