@@ -301,29 +301,34 @@ def _without_images(estimate):
                                motion=dataclasses.replace(estimate.motion, diagnostics=kept))
 
 
-def _estimate_chunk(task: tuple[str, str, list[int], bool]):
-    """In a worker: one method's estimates of a chunk of frames, and its analysis times."""
+def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
+    """In a worker: every method's estimates of a chunk of frames (each frame read once), and
+    their analysis times."""
     from sim.harness.runner import MethodEstimation
     from sim.harness.sequence import load_sequence
 
-    path, method, indices, keep_images = task
+    path, methods, indices, keep_images = task
     if path not in _WORKER_SEQUENCES:
         _WORKER_SEQUENCES[path] = load_sequence(path)
     sequence = _WORKER_SEQUENCES[path]
-    estimation = MethodEstimation(method)
+    estimations = {method: MethodEstimation(method) for method in methods}
     reference = None
     estimates = []
     for index in indices:
         reference_index = sequence.rows[index].reference_frame
         if reference is None or reference.index != reference_index:
             reference = sequence.frame(reference_index, exact=False)
-        estimate = estimation.estimate(reference, sequence.frame(index, exact=False))
-        estimates.append((index, estimate if keep_images else _without_images(estimate)))
-    return method, estimates, estimation.analysis_ms
+        frame = sequence.frame(index, exact=False)
+        for method, estimation in estimations.items():
+            estimate = estimation.estimate(reference, frame)
+            estimates.append((method, index,
+                              estimate if keep_images else _without_images(estimate)))
+    return estimates, {method: e.analysis_ms for method, e in estimations.items()}
 
 
 class _EstimationPool:
-    """Spawn workers estimating (method, chunk) tasks; results are taken in task order."""
+    """Spawn workers estimating chunks of frames with every method; results are taken in
+    task order."""
 
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         import multiprocessing
@@ -331,8 +336,7 @@ class _EstimationPool:
         self.sequence = sequence
         chunks = reference_chunks([row.reference_frame for row in sequence.rows],
                                   workers * CHUNKS_PER_WORKER)
-        tasks = [(str(sequence.path), method, chunk, keep_images)
-                 for chunk in chunks for method in methods]
+        tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
         with _single_thread_environment():
             self.pool = multiprocessing.get_context("spawn").Pool(
                 min(workers, len(tasks)), initializer=_init_worker)
@@ -343,9 +347,11 @@ class _EstimationPool:
     def estimate(self, method: str, reference, frame):
         _check_reference(self.sequence, reference, frame)
         while (method, frame.index) not in self.ready:
-            done_method, estimates, analysis_ms = next(self.results)
-            self.analysis_ms[done_method].extend(analysis_ms)
-            self.ready.update(((done_method, index), estimate) for index, estimate in estimates)
+            estimates, analysis_ms = next(self.results)
+            for done_method, times in analysis_ms.items():
+                self.analysis_ms[done_method].extend(times)
+            self.ready.update(((done_method, index), estimate)
+                              for done_method, index, estimate in estimates)
         return self.ready.pop((method, frame.index))
 
     def close(self) -> None:
