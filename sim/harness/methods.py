@@ -34,6 +34,7 @@ import numpy as np
 from stabilizer import Stabilizer, available_methods
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
+from stabilizer.verification import VerificationParams, Verifier
 
 #: Entry-point group under which installed distributions register methods.
 ENTRY_POINT_GROUP = "egostab.stabilizers"
@@ -157,21 +158,27 @@ class PluginStabilizer:
     The reference and every current frame reach the method as ``Stabilizer`` passes them
     (uint8 disparity-like images of one shape, 0 = invalid), read-only, so a method cannot
     alter the frames the other methods see. Its result becomes a :class:`Motion`
-    (:func:`as_motion`). If building the estimator raises, every frame against this reference
-    fails with ``"exception:<type>"``; what ``estimate`` raises is left to the caller (the
-    harness's ``timed_estimate`` records it the same way as for a built-in method).
+    (:func:`as_motion`), and an ``"ok"`` result passes the same trust check as a built-in
+    method's (:class:`stabilizer.verification.Verifier`; ``"unverified"`` when it fails), so
+    ``"ok"`` means the same for every method scored. If building the estimator raises, every
+    frame against this reference fails with ``"exception:<type>"``; what ``estimate`` raises
+    is left to the caller (the harness's ``timed_estimate`` records it the same way as for a
+    built-in method).
 
     Args:
         method: the name the method was given by (kept as ``self.method``).
         target: a class ``target(reference, **params)`` with ``.estimate(current)``, or a
             function ``target(reference, current, **params)``.
         reference: the reference frame (uint8 disparity-like or float depth in metres).
+        verification: the trust check's thresholds, as for ``Stabilizer``; None: no check.
         **params: the method's own keyword parameters.
     """
 
-    def __init__(self, method: str, target: Any, reference: np.ndarray, **params: Any):
+    def __init__(self, method: str, target: Any, reference: np.ndarray, *,
+                 verification: VerificationParams | None = VerificationParams(), **params: Any):
         self.method = method
         self.reference = _read_only(as_disparity(reference, "reference"))
+        self._verifier = Verifier(self.reference, verification) if verification else None
         self._failure: Motion | None = None
         if inspect.isclass(target):
             try:
@@ -187,7 +194,8 @@ class PluginStabilizer:
             return self._failure
         current = _read_only(as_disparity(current, "current"))
         check_same_shape(self.reference, current)
-        return as_motion(self._estimate(current))
+        motion = as_motion(self._estimate(current))
+        return self._verifier(current, motion) if self._verifier is not None else motion
 
 
 def _read_only(image: np.ndarray) -> np.ndarray:

@@ -66,8 +66,15 @@ def test_the_plugin_is_scored_by_import_path_and_by_entry_point(plugin_path, tmp
     by_path = run_rows(plugin_path, tmp_path / "by_path", f"{IMPORT_PATH},ecc")
     by_name = run_rows(plugin_path, tmp_path / "by_name", "orb")
     assert {row["method"] for row in by_path} == {IMPORT_PATH, "ecc"}
-    found = estimates(by_path, IMPORT_PATH)
-    assert len(found) == 6 and all(math.isfinite(value) for row in found for value in row)
-    assert all(row["status"] == "ok" for row in by_path if row["method"] == IMPORT_PATH)
-    assert estimates(by_name, "orb") == found  # the same class on the same frames
+    plugin_rows = [row for row in by_path if row["method"] == IMPORT_PATH]
+    assert len(plugin_rows) == 6
+    # ORB's "ok" passes the trust check of every method, or becomes "unverified" (standing
+    # frames, where its few keypoints invent a degree or two).
+    assert {row["status"] for row in plugin_rows} <= {"ok", "unverified"}
+    ok = [row for row in plugin_rows if row["status"] == "ok"]
+    assert ok and all(math.isfinite(value) for row in estimates(ok, IMPORT_PATH) for value in row)
+    by_name_rows = [row for row in by_name if row["method"] == "orb"]
+    assert [row["status"] for row in by_name_rows] == [row["status"] for row in plugin_rows]
+    assert estimates(ok, IMPORT_PATH) == estimates(  # the same class on the same frames
+        [row for row in by_name_rows if row["status"] == "ok"], "orb")
     assert (tmp_path / "by_path" / "estimates_egostab_orb_OrbEstimator.png").is_file()

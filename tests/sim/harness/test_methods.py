@@ -26,8 +26,9 @@ HELPERS = "tests.sim.harness.plugin_methods"
 
 @pytest.fixture(scope="module")
 def frames():
+    """A reference and the reference moved by FIXED: the helpers' fixed estimate is right."""
     reference = depth_to_disparity(make_depth_scene(3))
-    return reference, apply_motion(reference, Motion(2.0, 3.0, -1.0))
+    return reference, apply_motion(reference, Motion(*FIXED))
 
 
 def scored(name, frames, **params):
@@ -49,7 +50,16 @@ def test_a_class_or_a_function_by_import_path_gives_its_estimate(frames, name):
 def test_a_class_gets_the_reference_and_its_params(frames):
     motion = scored(f"{HELPERS}:FixedEstimator", frames, offset_px=1.0)
     assert motion.dx == FIXED[1] + 1.0
-    assert motion.diagnostics == {"shape": frames[0].shape}
+    assert motion.diagnostics["shape"] == frames[0].shape
+
+
+def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
+    reference, _ = frames
+    unrelated = depth_to_disparity(make_depth_scene(11))
+    wrong = timed_estimate(method_factory(f"{HELPERS}:fixed_motion")(reference), unrelated)[0]
+    assert wrong.status == "unverified" and wrong.diagnostics["unverified_motion"] == FIXED
+    unchecked = scored(f"{HELPERS}:fixed_motion", (reference, unrelated), verification=None)
+    assert unchecked.ok and unchecked.as_tuple() == FIXED
 
 
 @pytest.mark.parametrize("name, status", [
@@ -184,7 +194,9 @@ def test_the_ideal_experiment_names_a_plugin_by_the_string_given(tmp_path, frame
         rows = [row for row in csv.DictReader(handle)]
     plugin = [row for row in rows if row["method"] == name]
     assert len(plugin) == 3
-    assert all(float(row["est_dx_px"]) == FIXED[1] and row["status"] == "ok" for row in plugin)
+    # The same fixed motion for every frame of the paper's cycle is wrong: the trust check
+    # that every method's "ok" passes turns it into a failure.
+    assert {row["status"] for row in plugin} == {"unverified"}
     assert {row["status"] for row in rows if row["method"] == f"{HELPERS}:raising"} == {
         "exception:ValueError"}
     metrics = json.loads((out_dir / "metrics.json").read_text())
