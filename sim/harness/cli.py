@@ -185,23 +185,14 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
-
     from sim.harness.atomic import prepare_output_dir
+    from sim.harness.runset import run_on_command_line
+    from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 
     spec = load_sweep(args.sweep_file)
     out_dir = prepare_output_dir(args.out or default_sweep_dir(spec, DEFAULT_RESULTS))
-    try:
-        result = run_sweep(spec, out_dir, backend="ray" if args.ray else "local",
-                           workers=args.workers, ray_address=args.ray_address, progress=True)
-    except ImportError as error:  # --ray without the cluster extra: the message says the fix
-        print(f"egostab sweep: error: {error}", file=sys.stderr)
-        return 2
-    print(result.markdown)
-    for outcome in result.failed:
-        print(f"run failed: {outcome}", file=sys.stderr)
-    print(f"sweep folder: {out_dir}")
-    return 1 if result.failed else 0
+    return run_on_command_line("sweep", run_sweep, spec, out_dir,
+                               "ray" if args.ray else "local", args.workers, args.ray_address)
 
 
 def build_parser() -> argparse.ArgumentParser:

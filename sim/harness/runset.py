@@ -8,7 +8,8 @@ of walking runs; they differ in how they vary the runs, and share the rest.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+import sys
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -102,3 +103,20 @@ def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> 
     except FileNotFoundError as problem:
         raise fail(key, str(problem)) from None
     return str(found.resolve()) if is_path else entry
+
+
+def run_on_command_line(kind: str, run: Callable[..., Any], spec: Any, out_dir: Path,
+                        backend: str, workers: int | None, ray_address: str | None) -> int:
+    """Run a sweep or suite for ``egostab sweep|suite``: print its tables, each failed run and
+    its folder. Returns the exit status: 1 if a run failed, 2 without Ray's extra, else 0."""
+    try:
+        result = run(spec, out_dir, backend=backend, workers=workers, ray_address=ray_address,
+                     progress=True)
+    except ImportError as error:  # --ray without the cluster extra: the message says the fix
+        print(f"egostab {kind}: error: {error}", file=sys.stderr)
+        return 2
+    print(result.markdown)
+    for outcome in result.failed:
+        print(f"run failed: {outcome.run.name}: {outcome.error}", file=sys.stderr)
+    print(f"{kind} folder: {out_dir}")
+    return 1 if result.failed else 0

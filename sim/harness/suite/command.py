@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 
@@ -30,19 +29,11 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
 def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
     from sim.harness.atomic import prepare_output_dir
+    from sim.harness.runset import run_on_command_line
     from sim.harness.suite.run import default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
     spec = load_suite(args.suite_file)
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
-    try:
-        result = run_suite(spec, out_dir, backend="ray" if args.ray else "local",
-                           workers=args.workers, ray_address=args.ray_address, progress=True)
-    except ImportError as error:  # --ray without the cluster extra: the message says the fix
-        print(f"egostab suite: error: {error}", file=sys.stderr)
-        return 2
-    print(result.markdown)
-    for outcome in result.failed:
-        print(f"run failed: {outcome.run.name}: {outcome.error}", file=sys.stderr)
-    print(f"suite folder: {out_dir}")
-    return 1 if result.failed else 0
+    return run_on_command_line("suite", run_suite, spec, out_dir,
+                               "ray" if args.ray else "local", args.workers, args.ray_address)
