@@ -23,14 +23,14 @@ Run: ``python -m sim.harness.bench`` for the stabilizers alone (options: ``--fra
 
 from __future__ import annotations
 
-import os
+from sim.harness.threads import limit_threads
 
-for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+limit_threads()  # before numpy and OpenCV load: the figures are for one core
 
 import argparse
 import dataclasses
 import math
+import os
 import tempfile
 import time
 from collections.abc import Sequence
@@ -120,7 +120,6 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
     Synthetic scenes by default; pass ``scenes`` (e.g. :func:`simulated_scenes`) to time other
     frames. Prints one line per method with its time and its ratio to t2fuzzy.
     """
-    cv2.setNumThreads(1)
     methods = list(stabilizer.available_methods() if methods is None else methods)
     if scenes is None:
         scenes = _scenes(n_frames, n_scenes, seed)

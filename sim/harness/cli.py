@@ -10,6 +10,10 @@ figures, ``gate`` the CI regression gate, ``sweep`` many runs in parallel (local
 
 from __future__ import annotations
 
+from sim.harness.threads import limit_threads
+
+limit_threads()  # before anything below loads numpy or OpenCV
+
 import argparse
 import sys
 from pathlib import Path

@@ -24,9 +24,6 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-#: Environment variables that set a BLAS / OpenMP library's thread count.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                    "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
 #: Chunks per worker: enough for a balanced load, few enough that references are analysed
 #: once per chunk, not once per frame.
 CHUNKS_PER_WORKER = 4
@@ -265,29 +262,14 @@ def reference_chunks(reference_frames: list[int], n_chunks: int) -> list[list[in
     return chunks
 
 
-@contextmanager
-def _single_thread_environment() -> Iterator[None]:
-    """One BLAS/OpenMP thread in processes started inside (they read it before any import)."""
-    saved = {name: os.environ.get(name) for name in THREAD_VARIABLES}
-    os.environ.update({name: "1" for name in THREAD_VARIABLES})
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
-
-
 def _init_worker() -> None:
     import signal
 
-    import cv2
+    from sim.harness.threads import limit_threads
 
     # Ctrl-C reaches the whole process group: the parent ends the work and the workers.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    cv2.setNumThreads(1)
+    limit_threads()
 
 
 _WORKER_SEQUENCES: dict[str, Any] = {}
@@ -333,11 +315,13 @@ class _EstimationPool:
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         import multiprocessing
 
+        from sim.harness.threads import single_thread_environment
+
         self.sequence = sequence
         chunks = reference_chunks([row.reference_frame for row in sequence.rows],
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
-        with _single_thread_environment():
+        with single_thread_environment():
             self.pool = multiprocessing.get_context("spawn").Pool(
                 min(workers, len(tasks)), initializer=_init_worker)
         self.results = self.pool.imap(_estimate_chunk, tasks)

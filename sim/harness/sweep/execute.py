@@ -21,6 +21,7 @@ from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
+from sim.harness.threads import limit_threads, single_thread_environment_vars
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
@@ -107,7 +108,8 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
         return
     workers = min(workers or os.cpu_count() or 1, len(pending))
     pool = ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"))
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=limit_threads)
     try:
         futures = {pool.submit(run_fn, sweep_run.config): sweep_run for sweep_run in pending}
         remaining = set(futures)
@@ -144,7 +146,8 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
         return
     started_here = not ray.is_initialized()
     if started_here:
-        ray.init(address=ray_address, include_dashboard=False)
+        ray.init(address=ray_address, include_dashboard=False,
+                 runtime_env={"env_vars": single_thread_environment_vars()})
     in_flight: dict[Any, SweepRun] = {}
     try:
         remote_run = ray.remote(num_cpus=1, max_retries=0)(run_fn)

@@ -137,6 +137,7 @@ class SR4000:
         far_clip_m = model.vis.map.zfar * model.stat.extent
         self.tof = ToFModel(params, self.intrinsics, no_surface_depth_m=0.999 * far_clip_m)
         self._exposures: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._exposed_qpos: np.ndarray | None = None
         self._renderer = open_depth_renderer(model)
 
     @staticmethod
@@ -209,10 +210,16 @@ class SR4000:
         if len(self._exposures) >= self.params.motion_blur_subframes:
             raise ValueError(f"already {len(self._exposures)} exposures for this frame; call "
                              "read_frame() before exposing the next frame")
+        if self._exposures and self._exposures[-1][0] == data.time \
+                and np.array_equal(self._exposed_qpos, data.qpos):
+            # Sub-renders that fall on the same control step see the same state: the same image.
+            self._exposures.append(self._exposures[-1])
+            return
         mujoco.mj_kinematics(self.model, data)
         mujoco.mj_camlight(self.model, data)
         self._renderer.update_scene(data, camera=self.camera_id)
         depth = self._renderer.render()
+        self._exposed_qpos = data.qpos.copy()
         self._exposures.append((float(data.time), depth.copy(),
                                 data.cam_xpos[self.camera_id].copy(),
                                 data.cam_xmat[self.camera_id].reshape(3, 3).copy()))

@@ -1,0 +1,35 @@
+"""One OpenCV and one BLAS thread where estimates run (sim/harness/threads.py)."""
+
+import os
+import subprocess
+import sys
+
+from sim.harness.threads import THREAD_VARIABLES
+
+PROBE = ("import cv2, numpy, os, threadpoolctl; "
+         "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info()]; "
+         "print(cv2.getNumThreads(), os.environ['OMP_NUM_THREADS'], max(blas))")
+
+
+def _python(code: str, **env: str) -> str:
+    clean = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
+    result = subprocess.run([sys.executable, "-c", code], env={**clean, **env},
+                            capture_output=True, text=True, check=True, timeout=120)
+    return result.stdout.split()
+
+
+def test_limit_threads_pins_opencv_and_blas_before_they_load():
+    assert _python("from sim.harness.threads import limit_threads; limit_threads(); " + PROBE) \
+        == ["1", "1", "1"]
+
+
+def test_a_thread_count_the_user_set_is_kept():
+    cv2_threads, omp, _ = _python(
+        "from sim.harness.threads import limit_threads; limit_threads(); " + PROBE,
+        OMP_NUM_THREADS="2")
+    assert (cv2_threads, omp) == ("1", "2")
+
+
+def test_the_egostab_command_limits_threads_first():
+    out = _python("import sys; from sim.harness.cli import main; main(['list']); " + PROBE)
+    assert out[-3:] == ["1", "1", "1"]
