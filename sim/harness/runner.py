@@ -144,6 +144,7 @@ class SourceFrame:
     gait_cycle: int
     robot_position: Any
     encoded: Any = None
+    truth: Any = None
 
 
 class SimulatedFrames:
@@ -200,6 +201,89 @@ class SimulatedFrames:
         farthest = min(params.max_range_m, self.sensor.tof.no_surface_depth_m,
                        params.unambiguous_range_m if params.phase_wrapping else math.inf)
         return reported_depth_unit_m(farthest)
+
+
+class PrefetchedFrames:
+    """A frame source run ahead in its own thread, so the next frames are simulated and
+    rendered while this thread estimates and scores the current one.
+
+    MuJoCo's physics and renderer, numpy and OpenCV release the GIL in their heavy calls, so
+    the two threads share both cores. The source (its renderer's OpenGL context included) is
+    entered, iterated and closed in the producing thread only. Frames come in order, each
+    with the source's ``fall`` and ``sim_time_s`` as they were when it was made, so the
+    results are those of the source alone; the producer stops after a fall. At most
+    ``ahead`` frames wait.
+    """
+
+    _END = object()
+
+    def __init__(self, source, ahead: int = 4):
+        import queue
+        import threading
+
+        self.source, self.n_frames = source, source.n_frames
+        self._frames: queue.Queue = queue.Queue(maxsize=ahead)
+        self._opened: queue.Queue = queue.Queue(maxsize=1)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._produce, name="frames", daemon=True)
+        self.intrinsics = None
+        self.fall = None
+        self.sim_time_s = 0.0
+
+    def _put(self, item) -> bool:
+        """Queue ``item`` unless asked to stop first; whether it was queued."""
+        import queue
+
+        while not self._stop.is_set():
+            try:
+                self._frames.put(item, timeout=0.05)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _produce(self) -> None:
+        try:
+            with self.source:
+                self._opened.put(self.source.intrinsics)
+                for item in self.source:
+                    if not self._put((item, self.source.fall, self.source.sim_time_s)) \
+                            or self.source.fall is not None:
+                        break
+                end_time_s = self.source.sim_time_s
+            self._put((self._END, None, end_time_s))
+        except BaseException as error:  # handed to the consuming thread, which re-raises it
+            if self._opened.empty():
+                self._opened.put(error)
+            self._put((error, None, None))
+
+    def __enter__(self) -> "PrefetchedFrames":
+        self._thread.start()
+        try:
+            opened = self._opened.get()
+        except BaseException:  # interrupted while the source opens
+            self.__exit__()
+            raise
+        if isinstance(opened, BaseException):
+            self._thread.join()
+            raise opened
+        self.intrinsics = opened
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def __iter__(self):
+        while True:
+            item, fall, sim_time_s = self._frames.get()
+            if item is self._END:
+                self.sim_time_s = sim_time_s
+                return
+            if isinstance(item, BaseException):
+                raise item
+            self.fall, self.sim_time_s = fall, sim_time_s
+            yield item
 
 
 class ReferencePolicy:
@@ -276,7 +360,7 @@ def run(config: RunConfig) -> dict:
                       record=config.record and scenario.recording.enabled,
                       meta={"max_frames": config.max_frames})
     estimations = {method: MethodEstimation(method) for method in methods}
-    return score_frames(source, scoring, estimations, config.progress)
+    return score_frames(PrefetchedFrames(source), scoring, estimations, config.progress)
 
 
 def _configured_scenario(scenario: str, seed: int | None, overrides: Mapping[str, Any]):
@@ -378,7 +462,7 @@ class Scoring:
 
         frame, cycle = item.frame, item.gait_cycle
         reference = self.references.reference_for(frame, cycle)
-        truth = frame_truth(reference, frame, intrinsics)
+        truth = item.truth if item.truth is not None else frame_truth(reference, frame, intrinsics)
         estimates = {method: estimations[method].estimate(reference, frame)
                      for method in self.methods}
         for method, estimate in estimates.items():
@@ -484,7 +568,7 @@ def record(config: RecordConfig) -> dict:
                 for item in source:
                     frame = item.frame
                     reference = references.reference_for(frame, item.gait_cycle)
-                    truth = frame_truth(reference, frame, intrinsics)
+                    truth = item.truth if item.truth is not None else frame_truth(reference, frame, intrinsics)
                     writer.add(item.encoded, TruthRow(
                         frame.index, frame.time_s, reference.index, item.gait_cycle,
                         *truth.motion.as_tuple(), truth.motion.status, truth.residual_rms_px,

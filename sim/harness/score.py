@@ -88,15 +88,20 @@ def score(config: ScoreConfig) -> dict:
                             "workers": config.workers})
     with _method_estimations(sequence, methods, config.workers,
                              keep_images=scoring.recording_path is not None) as estimations:
-        return score_frames(SequenceFrames(sequence), scoring, {**estimations, **file_methods},
-                            config.progress)
+        pool = next((e.pool for e in estimations.values() if isinstance(e, _PooledMethod)), None)
+        return score_frames(SequenceFrames(sequence, truths=pool.truth if pool else None), scoring,
+                            {**estimations, **file_methods}, config.progress)
 
 
 class SequenceFrames:
-    """The frames of a loaded sequence as the scoring loop wants them (see SimulatedFrames)."""
+    """The frames of a loaded sequence as the scoring loop wants them (see SimulatedFrames).
 
-    def __init__(self, sequence):
-        self.sequence = sequence
+    ``truths``, when given, gives each frame's ground truth by index (computed elsewhere, e.g.
+    by the estimation workers); the frames are then read without their exact depth.
+    """
+
+    def __init__(self, sequence, truths=None):
+        self.sequence, self.truths = sequence, truths
         self.n_frames = sequence.n_frames
         self.intrinsics = sequence.intrinsics
         self._done = 0
@@ -123,9 +128,10 @@ class SequenceFrames:
 
         for index in range(self.n_frames):
             row = self.sequence.rows[index]
-            frame = self.sequence.frame(index)
+            frame = self.sequence.frame(index, exact=self.truths is None)
             self._done = index + 1
-            yield SourceFrame(frame, row.gait_cycle, row.torso)
+            yield SourceFrame(frame, row.gait_cycle, row.torso,
+                              truth=self.truths(index) if self.truths else None)
 
 
 def _check_reference(sequence, reference, frame) -> None:
@@ -273,6 +279,8 @@ def _init_worker() -> None:
 
 
 _WORKER_SEQUENCES: dict[str, Any] = {}
+#: The key of a frame's ground truth among a worker's results (no method is named "").
+TRUTH = ""
 
 
 def _without_images(estimate):
@@ -284,9 +292,9 @@ def _without_images(estimate):
 
 
 def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
-    """In a worker: every method's estimates of a chunk of frames (each frame read once), and
-    their analysis times."""
-    from sim.harness.runner import MethodEstimation
+    """In a worker: every method's estimates of a chunk of frames and each frame's ground
+    truth (each frame read once), and the methods' analysis times."""
+    from sim.harness.runner import MethodEstimation, frame_truth
     from sim.harness.sequence import load_sequence
 
     path, methods, indices, keep_images = task
@@ -299,8 +307,9 @@ def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
     for index in indices:
         reference_index = sequence.rows[index].reference_frame
         if reference is None or reference.index != reference_index:
-            reference = sequence.frame(reference_index, exact=False)
-        frame = sequence.frame(index, exact=False)
+            reference = sequence.frame(reference_index)
+        frame = sequence.frame(index)
+        estimates.append((TRUTH, index, frame_truth(reference, frame, sequence.intrinsics)))
         for method, estimation in estimations.items():
             estimate = estimation.estimate(reference, frame)
             estimates.append((method, index,
@@ -309,8 +318,8 @@ def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
 
 
 class _EstimationPool:
-    """Spawn workers estimating chunks of frames with every method; results are taken in
-    task order."""
+    """Spawn workers estimating chunks of frames with every method, and computing their
+    ground truth; results are taken in task order."""
 
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         import multiprocessing
@@ -330,13 +339,20 @@ class _EstimationPool:
 
     def estimate(self, method: str, reference, frame):
         _check_reference(self.sequence, reference, frame)
-        while (method, frame.index) not in self.ready:
+        return self._take(method, frame.index)
+
+    def truth(self, index: int):
+        """The ground truth of frame ``index``."""
+        return self._take(TRUTH, index)
+
+    def _take(self, method: str, index: int):
+        while (method, index) not in self.ready:
             estimates, analysis_ms = next(self.results)
             for done_method, times in analysis_ms.items():
                 self.analysis_ms[done_method].extend(times)
-            self.ready.update(((done_method, index), estimate)
-                              for done_method, index, estimate in estimates)
-        return self.ready.pop((method, frame.index))
+            self.ready.update(((done_method, done_index), estimate)
+                              for done_method, done_index, estimate in estimates)
+        return self.ready.pop((method, index))
 
     def close(self) -> None:
         self.pool.terminate()
