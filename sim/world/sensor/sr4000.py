@@ -14,7 +14,10 @@ The sensor never steps physics. The caller advances the simulation and, for fram
 Frame k integrates over [start + k / fps, start + k / fps + integration time]; with motion blur
 on (``motion_blur_subframes`` > 1) the window is split into that many equal parts and one render
 is taken at the centre of each. The frame's time and camera pose are those at mid-exposure (the
-pose interpolated between the two middle renders when their number is even).
+pose interpolated between the two middle renders when their number is even). With
+``material_reflectivity`` on, the geom id of every pixel of the centre sub-render (read from
+that depth render's colour buffer, :func:`rendered_geom_ids`) gives the frame's reflectivity
+image through :mod:`sim.world.sensor.materials`.
 
 Rendering is headless through EGL unless ``MUJOCO_GL`` names another backend (:mod:`sim` sets
 the default before mujoco is imported). The measurement model is :mod:`sim.world.sensor.tof_model`; the sensor's published
@@ -31,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
+from sim.world.sensor.materials import geom_reflectivity, reflectivity_image
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFModel, ToFParams
 from stabilizer.inputs import depth_to_disparity
 
@@ -136,8 +140,12 @@ class SR4000:
         self.start_time_s = float(start_time_s)
         far_clip_m = model.vis.map.zfar * model.stat.extent
         self.tof = ToFModel(params, self.intrinsics, no_surface_depth_m=0.999 * far_clip_m)
+        #: Reflectivity of each geom from its material; None: every surface params.reflectivity.
+        self.geom_reflectivity = (geom_reflectivity(model, params.reflectivity)
+                                  if params.material_reflectivity else None)
+        self._reflectivity: np.ndarray | None = None
         self._exposures: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
-        self._exposed_qpos: np.ndarray | None = None
+        self._exposed_state: np.ndarray | None = None  # positions of the last render
         self._renderer = open_depth_renderer(model)
 
     @staticmethod
@@ -210,19 +218,32 @@ class SR4000:
         if len(self._exposures) >= self.params.motion_blur_subframes:
             raise ValueError(f"already {len(self._exposures)} exposures for this frame; call "
                              "read_frame() before exposing the next frame")
+        centre = len(self._exposures) == self.params.motion_blur_subframes // 2
+        state = np.concatenate([data.qpos, data.mocap_pos.ravel(), data.mocap_quat.ravel()])
         if self._exposures and self._exposures[-1][0] == data.time \
-                and np.array_equal(self._exposed_qpos, data.qpos):
+                and np.array_equal(self._exposed_state, state):
             # Sub-renders that fall on the same control step see the same state: the same image.
             self._exposures.append(self._exposures[-1])
-            return
-        mujoco.mj_kinematics(self.model, data)
-        mujoco.mj_camlight(self.model, data)
-        self._renderer.update_scene(data, camera=self.camera_id)
-        depth = self._renderer.render()
-        self._exposed_qpos = data.qpos.copy()
-        self._exposures.append((float(data.time), depth.copy(),
-                                data.cam_xpos[self.camera_id].copy(),
-                                data.cam_xmat[self.camera_id].reshape(3, 3).copy()))
+        else:
+            mujoco.mj_kinematics(self.model, data)
+            mujoco.mj_camlight(self.model, data)
+            self._renderer.update_scene(data, camera=self.camera_id)
+            depth = self._renderer.render()
+            self._exposed_state = state
+            self._exposures.append((float(data.time), depth.copy(),
+                                    data.cam_xpos[self.camera_id].copy(),
+                                    data.cam_xmat[self.camera_id].reshape(3, 3).copy()))
+        if centre:
+            self._read_reflectivity()
+
+    def _read_reflectivity(self) -> None:
+        """Reflectivity image of the last depth render: its geom id per pixel
+        (:func:`rendered_geom_ids`) through the geoms' material reflectivities. Once per frame,
+        at the centre sub-render that the ToF model builds the reported depth on."""
+        if self.geom_reflectivity is not None:
+            self._reflectivity = reflectivity_image(rendered_geom_ids(self._renderer),
+                                                    self.geom_reflectivity,
+                                                    self.params.reflectivity)
 
     def read_frame(self, frame_index: int) -> Frame:
         """Apply the ToF model to this frame's exposures and return the Frame."""
@@ -231,9 +252,10 @@ class SR4000:
             raise ValueError(f"frame {frame_index} needs {n} exposures (one at each of "
                              f"exposure_times({frame_index})); got {len(self._exposures)}")
         exposures, self._exposures = self._exposures, []
+        reflectivity, self._reflectivity = self._reflectivity, None
         times = np.array([e[0] for e in exposures])
         rng = np.random.default_rng([self.seed, frame_index])
-        depth, valid = self.tof.apply([e[1] for e in exposures], rng)
+        depth, valid = self.tof.apply([e[1] for e in exposures], rng, reflectivity)
         mid_time = float(times.mean())
         cam_pos, cam_mat = _pose_at(mid_time, exposures)
         # The exact depth of the middle exposure, for the ground truth: the reported depth
@@ -246,8 +268,34 @@ class SR4000:
     def capture_still(self, data: mujoco.MjData, frame_index: int = 0) -> Frame:
         """One frame of a static scene: one render reused for every sub-frame."""
         self.expose(data)
+        if self._reflectivity is None:
+            self._read_reflectivity()
         self._exposures *= self.params.motion_blur_subframes
         return self.read_frame(frame_index)
+
+
+def rendered_geom_ids(renderer: mujoco.Renderer) -> np.ndarray:
+    """Geom id per pixel (H x W int32, -1 where no geom) of the renderer's last depth render.
+
+    ``mujoco.Renderer`` draws a depth render with segmentation colours (``mjRND_SEGMENT`` and
+    ``mjRND_IDCOLOR``: each geom in the colour segid + 1, 0 for the background), so reading
+    back that render's colour buffer gives the segmentation for the price of a 76 KB read
+    instead of a second render (docs/sensor.md). The read goes through the renderer's
+    ``_mjr_context`` and ``_rect``, which are not public API:
+    ``tests/sim/world/test_tof_model.py`` checks the result against the public segmentation
+    render (``enable_segmentation_rendering``).
+    """
+    rgb = np.empty((renderer.height, renderer.width, 3), dtype=np.uint8)
+    mujoco.mjr_readPixels(rgb, None, renderer._rect, renderer._mjr_context)
+    # OpenGL's rows run bottom-up.
+    colour = np.flipud(rgb).astype(np.int32)
+    segment = colour[..., 0] | colour[..., 1] << 8 | colour[..., 2] << 16
+    scene = renderer.scene
+    lookup = np.full(scene.ngeom + 1, -1, dtype=np.int32)
+    for geom in scene.geoms[:scene.ngeom]:
+        if geom.segid >= 0 and geom.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+            lookup[geom.segid + 1] = geom.objid
+    return np.where(segment < lookup.size, lookup[np.minimum(segment, lookup.size - 1)], -1)
 
 
 def _pose_at(time_s, exposures):

@@ -8,15 +8,19 @@ sensor's published figures and the model's known gaps):
 
 1. Radial range r = z * sqrt(1 + x_n^2 + y_n^2) from the planar depth z the renderer gives.
 2. Amplitude A = (rho / rho_ref) * cos(theta) * (d_ref / r)^2, so A = 1 for a 99 % target head-on
-   at 2 m (the datasheet's reference condition); theta from the depth image's surface normals.
+   at 2 m (the datasheet's reference condition); theta from the depth image's surface normals;
+   rho per pixel from the surface's material (:mod:`sim.world.sensor.materials`) or one value.
 3. Phasor averaging: each sub-render contributes A * exp(i 2 pi r / U), U = c / (2 f_mod). Mixed
    ("flying") pixels blend a pixel's phasor with its 4-neighbours' mean (weight uniform in
    [0, ``mixed_pixel_weight``] per pixel: where an edge falls in the pixel footprint is unknown);
    motion blur averages the phasors of the sub-renders over the integration window.
 4. Systematic "wiggling": r += a * sin(2 pi r / (U / 4) + phase): 4-phase sampling aliases the
    odd harmonics of the modulation onto a quarter of the unambiguous range.
-5. Random noise on r: sigma = clip(sigma_ref / A, sigma_min, sigma_max), phase noise inversely
-   proportional to amplitude, calibrated to the datasheet's repeatability at the reference.
+5. Random noise on r: sigma = min(sqrt(sigma_min^2 + (sigma_ref^2 - sigma_min^2) / A^2),
+   sigma_max): a part inversely proportional to amplitude (Lange's phase noise) in quadrature
+   with an amplitude-independent part, calibrated to the datasheet's repeatability (4 mm at
+   A = 1) and to Chiabrando et al.'s 3.7-4.0 mm on a white wall at 1.3 m
+   (:mod:`sim.world.sensor.calibration`).
 6. Phase wrapping: r mod U.
 7. Quantization: 14 significant bits over U.
 8. Validity: invalid (0) where there is no surface, the measured range is nearer than
@@ -24,9 +28,9 @@ sensor's published figures and the model's known gaps):
    (too dark / too far) or above ``saturation_amplitude`` (saturated).
 9. Back to planar depth z = r / sqrt(1 + x_n^2 + y_n^2) (the driver reports Cartesian z).
 
-Defaults follow the datasheet; the scene's reflectivity, the confidence and saturation
-thresholds, the noise floor and cap, the mixed-pixel weight and the integration time are choices
-of this model (docs/sensor.md).
+Defaults follow the datasheet and Chiabrando et al.; the materials' reflectivities, the
+confidence and saturation thresholds, the noise cap, the mixed-pixel weight and the integration
+time are choices of this model (docs/sensor.md).
 
 References:
     MESA Imaging, SR4000 data sheet (rev. 5.1, 2011) and user manual.
@@ -60,7 +64,8 @@ class ToFParams:
 
     Switching an effect off: ``phase_wrapping=False``; ``noise_sigma_ref_m=0``;
     ``wiggle_amplitude_m=0``; ``quantization_bits=0``; ``mixed_pixel_weight=0``;
-    ``motion_blur_subframes=1``; ``incidence_angle=False``; ``min_range_m=0``,
+    ``motion_blur_subframes=1``; ``incidence_angle=False``; ``material_reflectivity=False`` (every
+    surface ``reflectivity``); ``min_range_m=0``,
     ``max_range_m=inf``, ``min_amplitude=0``, ``saturation_amplitude=inf`` (no invalid pixels
     other than "no surface").
 
@@ -69,15 +74,24 @@ class ToFParams:
         phase_wrapping: report the range modulo U. Default True.
         min_range_m: measured ranges nearer are invalid. Default 0.1 m (datasheet).
         max_range_m: measured ranges farther are invalid. Default 5.0 m (calibrated range).
-        reflectivity: reflectivity rho of every surface, 0-1. Default 0.8.
+        reflectivity: near-infrared reflectivity rho, 0-1, of every surface when
+            ``material_reflectivity`` is False, else of the surfaces without a material of
+            :data:`sim.world.sensor.materials.NIR_REFLECTIVITY`. Default 0.8.
+        material_reflectivity: rho per pixel from the material of the surface it sees (the
+            geom ids of the centre sub-render; :mod:`sim.world.sensor.materials`). Default
+            True.
         incidence_angle: amplitude falls with cos(theta) of the incidence angle. Default True.
         min_amplitude: confidence threshold on the relative amplitude (1 = 99 % target head-on at
-            2 m). Default 0.02: a rho = 0.8 wall head-on stays valid to about 12 m.
+            2 m). Default 0.02: a white wall (rho = 0.85) head-on stays valid to about 13 m,
+            carbon-black plastic (0.05) to 3.2 m.
         saturation_amplitude: amplitudes above are invalid. Default 100 (rho = 0.8 nearer
             than about 0.18 m).
         noise_sigma_ref_m: range noise sigma at amplitude 1 (repeatability at 2 m, 99 %
             target). Default 0.004 m. 0 switches noise off.
-        noise_sigma_min_m: floor of sigma. Default 0.001 m.
+        noise_sigma_min_m: amplitude-independent part of sigma, added in quadrature: the value
+            sigma falls to at high amplitude; at most ``noise_sigma_ref_m``. Default 0.0038 m
+            (fitted to Chiabrando et al.'s white wall at 1.3 m:
+            ``python -m sim.world.sensor.calibration``).
         noise_sigma_max_m: cap of sigma. Default 0.05 m.
         wiggle_amplitude_m: amplitude of the periodic systematic error (bounded by the
             absolute accuracy). Default 0.010 m. 0 switches it off.
@@ -94,11 +108,12 @@ class ToFParams:
     min_range_m: float = 0.1
     max_range_m: float = 5.0
     reflectivity: float = 0.8
+    material_reflectivity: bool = True
     incidence_angle: bool = True
     min_amplitude: float = 0.02
     saturation_amplitude: float = 100.0
     noise_sigma_ref_m: float = 0.004
-    noise_sigma_min_m: float = 0.001
+    noise_sigma_min_m: float = 0.0038
     noise_sigma_max_m: float = 0.05
     wiggle_amplitude_m: float = 0.010
     wiggle_phase_rad: float = 0.0
@@ -121,7 +136,9 @@ class ToFParams:
             "saturation_amplitude": (self.saturation_amplitude > self.min_amplitude,
                                      "> min_amplitude"),
             "noise_sigma_ref_m": (self.noise_sigma_ref_m >= 0, ">= 0"),
-            "noise_sigma_min_m": (self.noise_sigma_min_m >= 0, ">= 0"),
+            "noise_sigma_min_m": (0 <= self.noise_sigma_min_m <= self.noise_sigma_ref_m
+                                  or self.noise_sigma_ref_m == 0,
+                                  ">= 0 and <= noise_sigma_ref_m (unless noise is off)"),
             "noise_sigma_max_m": (self.noise_sigma_max_m >= self.noise_sigma_min_m,
                                   ">= noise_sigma_min_m"),
             "wiggle_amplitude_m": (self.wiggle_amplitude_m >= 0, ">= 0"),
@@ -141,10 +158,10 @@ class ToFParams:
     def noiseless(cls) -> "ToFParams":
         """Every effect off: the reported depth is the rendered depth."""
         return cls(phase_wrapping=False, min_range_m=0.0, max_range_m=math.inf,
-                   incidence_angle=False, min_amplitude=0.0, saturation_amplitude=math.inf,
-                   noise_sigma_ref_m=0.0, noise_sigma_min_m=0.0, noise_sigma_max_m=0.0,
-                   wiggle_amplitude_m=0.0, quantization_bits=0, mixed_pixel_weight=0.0,
-                   motion_blur_subframes=1)
+                   material_reflectivity=False, incidence_angle=False, min_amplitude=0.0,
+                   saturation_amplitude=math.inf, noise_sigma_ref_m=0.0,
+                   noise_sigma_min_m=0.0, noise_sigma_max_m=0.0, wiggle_amplitude_m=0.0,
+                   quantization_bits=0, mixed_pixel_weight=0.0, motion_blur_subframes=1)
 
     @property
     def unambiguous_range_m(self) -> float:
@@ -157,9 +174,14 @@ class ToFParams:
             return 0.0
         return self.unambiguous_range_m / 2**self.quantization_bits
 
-    def relative_amplitude(self, range_m, cos_incidence=1.0):
-        """A = (rho / rho_ref) cos(theta) (d_ref / r)^2: 1 at the datasheet's reference."""
-        return (self.reflectivity / self.reference_reflectivity * cos_incidence
+    def relative_amplitude(self, range_m, cos_incidence=1.0, reflectivity=None):
+        """A = (rho / rho_ref) cos(theta) (d_ref / r)^2: 1 at the datasheet's reference.
+
+        ``reflectivity`` (a number or a per-pixel image) is rho; None: ``self.reflectivity``.
+        The returned light of a Lambertian surface scales with rho cos(theta) / r^2 (Lange 2000).
+        """
+        rho = self.reflectivity if reflectivity is None else reflectivity
+        return (rho / self.reference_reflectivity * cos_incidence
                 * (self.reference_distance_m / np.maximum(range_m, 1e-6)) ** 2)
 
     def wiggle_error_m(self, range_m):
@@ -169,22 +191,30 @@ class ToFParams:
                                                 + self.wiggle_phase_rad)
 
     def noise_sigma_m(self, amplitude):
-        """Range noise sigma ~ 1 / amplitude (Lange), clipped to [floor, cap]."""
+        """Range noise sigma = min(sqrt(sigma_min^2 + (b / A)^2), sigma_max).
+
+        b / A is Lange's phase noise, inversely proportional to the amplitude, with
+        b^2 = sigma_ref^2 - sigma_min^2 so that sigma = sigma_ref at A = 1; sigma_min is the part
+        that does not fall with the amplitude (docs/sensor.md, "Random noise").
+        """
         amplitude = np.asarray(amplitude)
         if self.noise_sigma_ref_m == 0:
             return np.zeros_like(amplitude, dtype=float)
+        floor_sq = self.noise_sigma_min_m ** 2
         with np.errstate(divide="ignore"):
-            sigma = self.noise_sigma_ref_m / amplitude
-        return np.clip(sigma, self.noise_sigma_min_m, self.noise_sigma_max_m)
+            sigma = np.sqrt(floor_sq + (self.noise_sigma_ref_m ** 2 - floor_sq)
+                            / np.square(amplitude))
+        return np.minimum(sigma, self.noise_sigma_max_m)
 
 
 #: Named parameter sets; scenarios pick one and may override fields.
 TOF_PRESETS: dict[str, ToFParams] = {
     "sr4000": ToFParams(),
     "noiseless": ToFParams.noiseless(),
-    # 3x the repeatability and 2x the wiggling, stronger mixing and a stricter confidence
-    # threshold: a worn or badly lit sensor, for robustness tests.
-    "high_noise": ToFParams(noise_sigma_ref_m=0.012, noise_sigma_max_m=0.15,
+    # 3x the noise and 2x the wiggling, stronger mixing and a stricter confidence threshold: a
+    # worn or badly lit sensor, for robustness tests.
+    "high_noise": ToFParams(noise_sigma_ref_m=0.012, noise_sigma_min_m=0.0114,
+                            noise_sigma_max_m=0.15,
                             wiggle_amplitude_m=0.02, mixed_pixel_weight=0.8,
                             min_amplitude=0.05),
 }
@@ -229,21 +259,34 @@ class ToFModel:
         c = a * self._xn + b * self._yn + depth_m
         return depth_m / (np.sqrt(a * a + b * b + c * c) * self.ray_scale)
 
-    def apply(self, renders: list[np.ndarray], rng: np.random.Generator):
+    def apply(self, renders: list[np.ndarray], rng: np.random.Generator,
+              reflectivity: np.ndarray | None = None):
         """Reported (depth_m float32 with 0 where invalid, valid bool) from sub-frame renders.
 
         The centre render (the middle one of the integration window) is the reference the
         reported depth is built on, so the noiseless preset returns it unchanged.
+        ``reflectivity`` is the per-pixel rho of the centre render's surfaces, used for every
+        sub-render (the surfaces move by a pixel or two within the window); None gives every
+        surface ``params.reflectivity``.
         """
         p = self.params
         if len(renders) != p.motion_blur_subframes:
             raise ValueError(f"need {p.motion_blur_subframes} sub-frame renders "
                              f"(motion_blur_subframes); got {len(renders)}")
         depths = [np.asarray(d, dtype=np.float32) for d in renders]
-        surfaces = [d < self.no_surface_depth_m for d in depths]
+        if reflectivity is not None and np.shape(reflectivity) != depths[0].shape:
+            raise ValueError(f"reflectivity image has shape {np.shape(reflectivity)}; the "
+                             f"renders have {depths[0].shape}")
+        # Sub-renders of an unchanged state come as one array (SR4000.expose): work on it once.
+        per_render = {}
+        for d in depths:
+            if id(d) not in per_render:
+                surface, range_m = d < self.no_surface_depth_m, self.radial_range(d)
+                per_render[id(d)] = (surface, range_m,
+                                     self._amplitude(d, range_m, surface, reflectivity))
+        surfaces, ranges, amplitudes = (list(values) for values in
+                                        zip(*(per_render[id(d)] for d in depths)))
         surface = np.logical_or.reduce(surfaces)
-        ranges = [self.radial_range(d) for d in depths]
-        amplitudes = [self._amplitude(d, r, s) for d, r, s in zip(depths, ranges, surfaces)]
         centre = len(renders) // 2
         true_range = ranges[centre]
         if p.mixed_pixel_weight > 0 or len(renders) > 1:
@@ -267,9 +310,10 @@ class ToFModel:
         depth[~valid] = 0.0
         return depth, valid
 
-    def _amplitude(self, depth, range_m, surface):
+    def _amplitude(self, depth, range_m, surface, reflectivity):
         cos = self.cos_incidence(depth) if self.params.incidence_angle else np.float32(1.0)
-        amplitude = self.params.relative_amplitude(range_m, cos).astype(np.float32)
+        amplitude = self.params.relative_amplitude(range_m, cos,
+                                                   reflectivity).astype(np.float32)
         amplitude[~surface] = 0.0
         return amplitude
 
@@ -279,8 +323,11 @@ class ToFModel:
         period = np.float32(p.unambiguous_range_m)
         to_phase = np.float32(2 * np.pi) / period
         real, imag = np.zeros_like(ranges[0]), np.zeros_like(ranges[0])
+        phasors = {}
         for r, a in zip(ranges, amplitudes):
-            x, y = cv2.polarToCart(a, np.mod(r, period) * to_phase)
+            if id(r) not in phasors:
+                phasors[id(r)] = cv2.polarToCart(a, np.mod(r, period) * to_phase)
+            x, y = phasors[id(r)]
             real += x
             imag += y
         # Amplitude-weighted linear mean: picks the right period when wrapping is off.

@@ -262,3 +262,21 @@ def test_no_opengl_backend_is_an_error_naming_the_fix(monkeypatch):
     with pytest.raises(RuntimeError, match="apt-get install libegl1.*MUJOCO_GL=osmesa"):
         SR4000(model, camera)
     assert model.vis.quality.offsamples == 4  # the model is left as it was
+
+
+def test_sub_renders_of_an_unchanged_state_render_once():
+    model, data, camera = _edge_scene()
+    params = dataclasses.replace(DEFAULT, motion_blur_subframes=3)
+    with SR4000(model, camera, params) as sensor:
+        renders = []
+        render = sensor._renderer.render
+        sensor._renderer.render = lambda: renders.append(1) or render()
+        for _ in range(3):
+            sensor.expose(data)  # same time, same state: one image
+        sensor.read_frame(0)
+        for step in range(3):
+            data.mocap_pos[0] = [0.0, 0.01 * step, 0.55]  # a moved body: a new image each
+            sensor.expose(data)
+        moved = sensor.read_frame(1)
+    assert len(renders) == 1 + 3
+    assert moved.valid.any()

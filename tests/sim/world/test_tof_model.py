@@ -1,0 +1,256 @@
+"""The ToF model's noise, validity and per-material reflectivity against its own equations and
+against the published figures it is calibrated to (docs/sensor.md, "Noise calibration")."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from dm_control import mjcf  # noqa: E402
+
+from sim.world.camera import SR4000_INTRINSICS  # noqa: E402
+from sim.world.scenes import SCENES, build_scene  # noqa: E402
+from sim.world.sensor.calibration import (  # noqa: E402
+    CALIBRATION_POINTS, CALIBRATION_TOLERANCE, DATASHEET_REPEATABILITY, WHITE_WALL_1_3M,
+    fitted_noise_floor_m, model_sigma_m)
+from sim.world.sensor.materials import NIR_REFLECTIVITY, geom_reflectivity  # noqa: E402
+from sim.world.sensor.sr4000 import (  # noqa: E402
+    SR4000, add_probe_camera, open_depth_renderer, rendered_geom_ids)
+from sim.world.sensor.tof_model import TOF_PRESETS, ToFModel, ToFParams  # noqa: E402
+
+DEFAULT = TOF_PRESETS["sr4000"]
+BAND_REFLECTIVITIES = (0.05, 0.35, 0.6, 0.99)
+
+
+def reflectivity_bands(shape) -> np.ndarray:
+    """An image of vertical bands, one per value of BAND_REFLECTIVITIES, left to right."""
+    band = np.minimum(np.arange(shape[1]) * len(BAND_REFLECTIVITIES) // shape[1],
+                      len(BAND_REFLECTIVITIES) - 1)
+    return np.broadcast_to(np.array(BAND_REFLECTIVITIES, np.float32)[band], shape).copy()
+
+
+def synthesized_frames(params, distance_m, reflectivity, n, seed=3):
+    """Reported depths of ``n`` frames of a flat wall ``distance_m`` ahead (no rendering)."""
+    model = ToFModel(params, SR4000_INTRINSICS)
+    k = SR4000_INTRINSICS
+    wall = np.full((k.height, k.width), distance_m, dtype=np.float32)
+    frames = [model.apply([wall] * params.motion_blur_subframes,
+                          np.random.default_rng([seed, i]), reflectivity) for i in range(n)]
+    return model, wall, frames
+
+
+@pytest.mark.parametrize("distance_m, dark_valid", [(1.0, (0.99, 1.0)), (3.0, (0.02, 0.5)),
+                                                   (4.0, (0.0, 0.01))])
+def test_noise_and_validity_follow_each_pixels_reflectivity(distance_m, dark_valid):
+    """Flat walls of four reflectivities side by side: per band, the frame-to-frame sigma and
+    the fraction of valid pixels are the model's (sigma from A = rho cos / r^2, validity from
+    the confidence threshold on A). The dark band is all valid at 1 m, partly at 3 m (its
+    amplitude falls toward the image corners) and not at all at 4 m (but for a few pixels on its
+    border that mixed pixels blend with the brighter band)."""
+    k = SR4000_INTRINSICS
+    rho = reflectivity_bands((k.height, k.width))
+    model, wall, frames = synthesized_frames(DEFAULT, distance_m, rho, 60)
+    depth = np.stack([f[0] for f in frames]).astype(np.float64)
+    valid = np.stack([f[1] for f in frames])
+    true_range = model.radial_range(wall)
+    amplitude = DEFAULT.relative_amplitude(true_range, model.cos_incidence(wall), rho)
+    expected_valid = amplitude >= DEFAULT.min_amplitude
+    expected_sigma_z = DEFAULT.noise_sigma_m(amplitude) / model.ray_scale
+    for value in BAND_REFLECTIVITIES:
+        band = rho == value
+        assert valid[:, band].mean() == pytest.approx(expected_valid[band].mean(), abs=0.01)
+        always = band & valid.all(axis=0)
+        if always.sum() < 500:
+            continue  # too few valid pixels to measure sigma on (dark band far away)
+        measured = depth[:, always].std(axis=0, ddof=1).mean()
+        assert measured == pytest.approx(expected_sigma_z[always].mean(), rel=0.05)
+    dark_fraction = valid[:, rho == BAND_REFLECTIVITIES[0]].mean()
+    assert dark_valid[0] <= dark_fraction <= dark_valid[1]
+
+
+def test_sigma_law_has_the_documented_form_and_limits():
+    p = DEFAULT
+    b_sq = p.noise_sigma_ref_m**2 - p.noise_sigma_min_m**2
+    for amplitude in (0.05, 0.3, 1.0, 2.0, 50.0):
+        expected = min(np.sqrt(p.noise_sigma_min_m**2 + b_sq / amplitude**2), p.noise_sigma_max_m)
+        assert float(p.noise_sigma_m(amplitude)) == pytest.approx(expected)
+    assert float(p.noise_sigma_m(1.0)) == pytest.approx(0.004)
+    assert float(p.noise_sigma_m(1e6)) == pytest.approx(p.noise_sigma_min_m)
+    assert float(p.noise_sigma_m(0.0)) == p.noise_sigma_max_m
+    assert float(ToFParams(noise_sigma_ref_m=0.0).noise_sigma_m(1.0)) == 0.0
+    with pytest.raises(ValueError, match="noise_sigma_min_m"):
+        ToFParams(noise_sigma_ref_m=0.003, noise_sigma_min_m=0.004)
+
+
+@pytest.mark.parametrize("point", CALIBRATION_POINTS, ids=lambda p: p.name)
+def test_model_reproduces_the_published_noise_within_20_percent(point):
+    assert model_sigma_m(DEFAULT, point) == pytest.approx(point.sigma_mid_m,
+                                                          rel=CALIBRATION_TOLERANCE)
+    # The default floor is the fit to the 1.3 m wall, rounded.
+    assert DEFAULT.noise_sigma_min_m == pytest.approx(fitted_noise_floor_m(DEFAULT), abs=5e-5)
+
+
+def box_world(boxes):
+    """Boxes (centre, half sizes, material or None) and a probe SR4000 at (0, 0, 0.55) looking
+    +x; materials named as the scenes' so their reflectivities apply."""
+    root = mjcf.RootElement(model="test")
+    root.statistic.extent = 10.0
+    root.visual.map.znear, root.visual.map.zfar = 0.005, 3.0
+    for name in NIR_REFLECTIVITY:
+        root.asset.add("material", name=name)
+    for centre, half, material in boxes:
+        root.worldbody.add("geom", type="box", pos=list(centre), size=list(half),
+                           material=material)
+    camera = add_probe_camera(root, (0.0, 0.0), 0.0, height_m=0.55)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string())
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data, camera
+
+
+def wall(distance_m, material=None, y=0.0, half_width=20.0):
+    return ((distance_m + 0.05, y, 0.55), (0.05, half_width, half_width), material)
+
+
+def rendered_range_sigma(model, data, camera, params, n=60, seed=5):
+    """Per-pixel sigma of the reported radial range over ``n`` stills, and the valid mask."""
+    with SR4000(model, camera, params, seed=seed) as sensor:
+        frames = [sensor.capture_still(data, k) for k in range(n)]
+        scale = sensor.tof.ray_scale
+    depth = np.stack([f.depth_m for f in frames]).astype(np.float64)
+    valid = np.stack([f.valid for f in frames]).all(axis=0)
+    return depth.std(axis=0, ddof=1) * scale, valid
+
+
+def test_rendered_frames_reproduce_the_datasheet_repeatability():
+    """A 99 % target head-on at 2 m: the central pixels' sigma is 4 mm within 20 %."""
+    model, data, camera = box_world([wall(2.0)])  # no material: the scalar reflectivity
+    params = dataclasses.replace(DEFAULT, reflectivity=DATASHEET_REPEATABILITY.reflectivity)
+    sigma, valid = rendered_range_sigma(model, data, camera, params)
+    rows, cols = sigma.shape
+    centre = sigma[rows // 2 - 4:rows // 2 + 4, cols // 2 - 4:cols // 2 + 4]
+    assert valid.all()
+    assert centre.mean() == pytest.approx(DATASHEET_REPEATABILITY.sigma_mid_m,
+                                          rel=CALIBRATION_TOLERANCE)
+    assert centre.mean() == pytest.approx(model_sigma_m(params, DATASHEET_REPEATABILITY),
+                                          rel=0.05)
+
+
+def test_rendered_white_wall_reproduces_chiabrando_at_1_3_m():
+    """A wall of the scenes' ``wall`` material at 1.3 m, its reflectivity found through the
+    segmentation render: the mean per-pixel sigma is 3.7-4.0 mm within 20 %."""
+    model, data, camera = box_world([wall(WHITE_WALL_1_3M.distance_m, "wall")])
+    sigma, valid = rendered_range_sigma(model, data, camera, DEFAULT)
+    assert valid.all()
+    assert sigma.mean() == pytest.approx(WHITE_WALL_1_3M.sigma_mid_m, rel=CALIBRATION_TOLERANCE)
+    assert sigma.mean() == pytest.approx(model_sigma_m(DEFAULT, WHITE_WALL_1_3M), rel=0.05)
+
+
+def test_surfaces_get_the_reflectivity_of_their_material():
+    """Two walls side by side at 3.3 m: the ``dark`` one is below the confidence threshold, the
+    white ``wall`` one is valid; with one reflectivity for every surface both are valid."""
+    distance = 3.3
+    model, data, camera = box_world([wall(distance, "dark", y=10.0, half_width=10.0),
+                                     wall(distance, "wall", y=-10.0, half_width=10.0)])
+    dark_amplitude = DEFAULT.relative_amplitude(distance, 1.0, NIR_REFLECTIVITY["dark"].value)
+    assert dark_amplitude < DEFAULT.min_amplitude
+    with SR4000(model, camera, DEFAULT, seed=0) as sensor:
+        frame = sensor.capture_still(data)
+    cols = SR4000_INTRINSICS.width
+    left, right = frame.valid[:, : cols // 2 - 2], frame.valid[:, cols // 2 + 2:]
+    assert not left.any() and right.all()  # image left = world +y = the dark wall
+    uniform = dataclasses.replace(DEFAULT, material_reflectivity=False)
+    with SR4000(model, camera, uniform, seed=0) as sensor:
+        assert sensor.capture_still(data).valid.all()
+
+
+def test_saturation_follows_the_material():
+    """At 0.15 m a white ``wall`` saturates (A > saturation_amplitude) and a ``dark`` one does
+    not."""
+    distance = 0.15
+    for material, saturated in (("wall", True), ("dark", False)):
+        amplitude = DEFAULT.relative_amplitude(distance, 1.0, NIR_REFLECTIVITY[material].value)
+        assert (amplitude > DEFAULT.saturation_amplitude) == saturated
+        model, data, camera = box_world([wall(distance, material)])
+        with SR4000(model, camera, DEFAULT, seed=0) as sensor:
+            valid = sensor.capture_still(data).valid
+        assert valid.mean() == (0.0 if saturated else 1.0), material
+
+
+def test_geom_ids_read_from_the_depth_render_equal_the_segmentation_render():
+    """The colour buffer of a depth render holds the segmentation (rendered_geom_ids); it must
+    match mujoco.Renderer's public segmentation render of the same view, pixel for pixel."""
+    scene = build_scene("office", 0)
+    camera = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg + 20.0)
+    model = scene.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    renderer = open_depth_renderer(model)
+    try:
+        renderer.update_scene(data, camera=camera)
+        renderer.render()
+        read_back = rendered_geom_ids(renderer)
+        renderer.enable_segmentation_rendering()
+        segmentation = renderer.render()
+    finally:
+        renderer.close()
+    is_geom = segmentation[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
+    expected = np.where(is_geom, segmentation[..., 0], -1)
+    assert len(np.unique(expected)) > 10  # many surfaces in view
+    np.testing.assert_array_equal(read_back, expected)
+
+
+def test_geoms_without_a_known_material_take_the_scalar_reflectivity():
+    root = mjcf.RootElement(model="m")
+    root.asset.add("material", name="wood")
+    root.asset.add("material", name="unobtainium")
+    robot = mjcf.RootElement(model="robot")
+    robot.asset.add("material", name="dark")
+    robot.worldbody.add("geom", type="sphere", size=[0.1], material="dark")
+    root.worldbody.add("geom", type="sphere", size=[0.1], material="wood")
+    root.worldbody.add("geom", type="sphere", size=[0.1], material="unobtainium")
+    root.worldbody.add("geom", type="sphere", size=[0.1])
+    root.attach(robot)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string())
+    table = geom_reflectivity(model, default=0.42)
+    np.testing.assert_allclose(table, [NIR_REFLECTIVITY["wood"].value, 0.42, 0.42,
+                                       NIR_REFLECTIVITY["dark"].value], rtol=1e-6)
+
+
+def test_every_material_of_the_shipped_scenes_has_a_nir_reflectivity():
+    for name in SCENES:
+        model = build_scene(name, 0).compile()
+        materials = {model.mat(i).name for i in range(model.nmat)}
+        missing = materials - set(NIR_REFLECTIVITY)
+        assert not missing, f"scene {name!r}: add {sorted(missing)} to NIR_REFLECTIVITY"
+    for entry in NIR_REFLECTIVITY.values():
+        assert 0 < entry.low <= entry.value <= entry.high <= 1
+
+
+def test_same_seed_same_frames_with_material_reflectivity():
+    model, data, camera = box_world([wall(2.5, "wood", y=0.5, half_width=0.5),
+                                     wall(3.5, "concrete")])
+    runs = []
+    for _ in range(2):
+        with SR4000(model, camera, DEFAULT, seed=11) as sensor:
+            runs.append(sensor.capture_still(data, 4).depth_m)
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_sub_renders_of_one_state_passed_once_give_the_frame_of_copies():
+    # SR4000.expose hands the same array for sub-renders on the same control step; the model
+    # works on it once, with the result of three equal renders.
+    rng = np.random.default_rng(3)
+    depth = (0.5 + 4.0 * rng.random((SR4000_INTRINSICS.height, SR4000_INTRINSICS.width))
+             ).astype(np.float32)
+    reflectivity = rng.uniform(0.05, 0.95, depth.shape).astype(np.float32)
+    model = ToFModel(TOF_PRESETS["sr4000"], SR4000_INTRINSICS, no_surface_depth_m=9.99)
+    shared = model.apply([depth, depth, depth], np.random.default_rng(5), reflectivity)
+    copies = model.apply([depth, depth.copy(), depth.copy()], np.random.default_rng(5),
+                         reflectivity)
+    assert all(np.array_equal(a, b) for a, b in zip(shared, copies))
