@@ -206,6 +206,66 @@ def _km_interval(weights: np.ndarray, running: np.ndarray) -> tuple[np.ndarray, 
             np.fmax.reduce(right[1] / right[0], axis=1))
 
 
+class _CentreUpdate:
+    """One IT2-FCM centre update (eqs. (2)-(5)) on fixed data, with every buffer allocated once.
+
+    The same element-wise operations, in the same order, as :func:`interval_memberships`
+    followed by :func:`karnik_mendel` on the weights [lower^m, upper^m] times the counts, so the
+    result is the same to the last bit; the data are at most 255 levels, so the cost is the
+    number of numpy calls, which the stacked buffers keep small (the two fuzzifiers' memberships
+    are normalised in one call, both KM bounds divided in one).
+    """
+
+    def __init__(self, x: np.ndarray, counts: np.ndarray, n_clusters: int, m1: float,
+                 m2: float, m: float):
+        self.x, self.counts, self.m = x, counts, m
+        self.exponents = (2.0 / (m1 - 1.0), 2.0 / (m2 - 1.0))
+        shape = (n_clusters, x.size)
+        self.ratio = np.empty(shape)
+        self.powered = np.empty((2,) + shape)  # the memberships for m1 and for m2
+        # [lower, upper, lower * x, upper * x] weights, their running sums with a leading zero
+        # column, and the KM sums [left, right] x [sum of weights, sum of weights * x].
+        self.weights = np.empty((4,) + shape)
+        self.running = np.zeros((4, n_clusters, x.size + 1))
+        self.weight_rows = self.weights.reshape(-1, x.size)
+        self.running_rows = self.running.reshape(-1, x.size + 1)[:, 1:]
+        self.switched = np.empty((2, n_clusters, x.size + 1))
+        self.km_sums = np.empty((2, 2, n_clusters, x.size + 1))
+
+    def __call__(self, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[v_L, v_R] of every cluster for the memberships to ``centres``."""
+        ratio = self.ratio
+        np.subtract(centres[:, None], self.x, out=ratio)
+        distance = np.abs(ratio, out=ratio)
+        nearest = distance.min(axis=0)
+        # Levels are integers: only an integer centre can have a level at distance zero.
+        if any(centre.is_integer() for centre in centres.tolist()) and not nearest.min() > 0.0:
+            ratio[...] = _distance_ratios(self.x, centres)
+        else:
+            np.divide(nearest, distance, out=ratio)
+        powered = self.powered
+        for exponent, out in zip(self.exponents, powered):
+            np.power(ratio, exponent, out=out)
+        powered /= powered.sum(axis=1)[:, None]
+        weights = self.weights
+        np.maximum(powered[0], powered[1], out=weights[1])
+        np.minimum(powered[0], powered[1], out=weights[0])
+        bounds = weights[:2]
+        np.power(bounds, self.m, out=bounds)
+        bounds *= self.counts
+        np.multiply(bounds, self.x, out=weights[2:])
+        # As _km_interval: np.cumsum's running sums (one accumulate over a 2-D view costs
+        # less), and both quotients in one call.
+        running = self.running
+        np.add.accumulate(self.weight_rows, axis=1, out=self.running_rows)
+        switched = np.subtract(running[0::2], running[1::2], out=self.switched)
+        sums = self.km_sums
+        np.subtract(running[0::2, :, -1:], switched, out=sums[0])
+        np.add(running[1::2, :, -1:], switched, out=sums[1])
+        centroids = sums[:, 1] / sums[:, 0]
+        return np.fmin.reduce(centroids[0], axis=1), np.fmax.reduce(centroids[1], axis=1)
+
+
 class IT2FCM:
     """Interval type-2 fuzzy c-means on the weighted histogram of valid gray levels.
 
@@ -260,26 +320,23 @@ class IT2FCM:
             raise ValueError(f"seeds must be a non-empty 1-D array of gray levels; got shape "
                              f"{np.shape(seeds)}")
         present = np.flatnonzero(level_counts[1:] > 0) + 1
+        if present.size == 0:
+            raise ValueError("level_counts has no valid pixel (every count of levels 1-255 is "
+                             "0); a histogram of at least one valid level is needed")
         x = present.astype(np.float64)
-        counts = level_counts[present]
         centres = np.sort(np.asarray(seeds, dtype=np.float64))
+        update = _CentreUpdate(x, level_counts[present], centres.size, self.m1, self.m2, self.m)
         v_left = v_right = centres
         converged = False
         iterations = 0
-        # Buffers reused by every iteration: [lower, upper, lower * x, upper * x] weights
-        # (rows 0-2 first hold the memberships) and their running sums.
-        weights = np.empty((4, centres.size, x.size))
-        running = np.zeros((4, centres.size, x.size + 1))
         with np.errstate(invalid="ignore", divide="ignore"):
             while iterations < self.max_iter and not converged:
-                _membership_bounds(x, centres, self.m1, self.m2, weights)
-                bounds = weights[:2]
-                np.power(bounds, self.m, out=bounds)
-                bounds *= counts
-                np.multiply(bounds, x, out=weights[2:])
-                v_left, v_right = _km_interval(weights, running)
+                v_left, v_right = update(centres)
                 new_centres = (v_left + v_right) / 2.0
-                converged = bool(np.max(np.abs(new_centres - centres)) < self.tol)
+                # C is small: every change in plain floats (the same doubles as numpy's; a NaN
+                # change is not converged, as np.max(...) < tol would say).
+                converged = all(abs(new - old) < self.tol for new, old in
+                                zip(new_centres.tolist(), centres.tolist()))
                 centres = new_centres
                 iterations += 1
         return FuzzyClusters(centres, np.column_stack((v_left, v_right)),

@@ -6,7 +6,9 @@ ratio to the paper's; the walking physics' real-time factor (no rendering); the 
 ToF frames/s; and the real-time factor of the whole pipeline on the default scenario. ``--out``
 writes them as Markdown with the machine they came from (results/bench.md). The component
 timings (:func:`ground_truth_ms`, :func:`scoring_ms`, :func:`recording_ms`) are here for
-profiling one stage at a time.
+profiling one stage at a time, and :func:`t2fuzzy_corpus_benchmark` times the paper's method
+against SIFT on a varied synthetic corpus and on the walking frames of every scene
+(``python -m sim.harness.bench t2fuzzy-corpus``).
 
 Stabilizer figures: milliseconds per frame at the SR4000's 176 x 144. For each method and each
 of ``n_scenes`` synthetic depth scenes, ``Stabilizer(reference, method)`` is built once (the
@@ -76,19 +78,27 @@ def _scenes(n_frames: int, n_scenes: int, seed: int) -> list[tuple[np.ndarray, l
     return scenes
 
 
-def time_method(method: str, scenes: list[tuple[np.ndarray, list]]) -> float:
+def time_method(method: str, scenes: list[tuple[np.ndarray, list]],
+                clock=time.perf_counter) -> float:
     """Median milliseconds of ``estimate(frame)`` over frames, the reference analysed once per
-    scene (``Stabilizer(reference, method)`` for a built-in; sim.harness.methods)."""
+    scene (``Stabilizer(reference, method)`` for a built-in; sim.harness.methods). ``clock``:
+    wall-clock time by default; ``time.process_time`` counts only this process's CPU time."""
+    return float(np.median(frame_ms(method, scenes, clock)))
+
+
+def frame_ms(method: str, scenes: list[tuple[np.ndarray, list]],
+             clock=time.perf_counter) -> list[float]:
+    """Milliseconds of each ``estimate(frame)`` of :func:`time_method`, in frame order."""
     factory = method_factory(method)
     times = []
     for reference, frames in scenes:
         tracker = factory(reference)
         tracker.estimate(frames[0])  # warm up caches and lazy imports
         for frame in frames:
-            start = time.perf_counter()
+            start = clock()
             tracker.estimate(frame)
-            times.append(time.perf_counter() - start)
-    return 1e3 * float(np.median(times))
+            times.append(1e3 * (clock() - start))
+    return times
 
 
 def simulated_scenes(scenario: str = DEFAULT_SCENARIO, n_frames: int = 150,
@@ -139,6 +149,75 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
         if np.isfinite(ms):
             print(f"{method:>16}: {ms:8.3f} ms   ({ms / baseline:6.2f} x {BASELINE})")
     return results
+
+
+#: The shipped scenario whose walk gives each scene's frames in :func:`t2fuzzy_corpus_benchmark`.
+WALK_SCENARIOS = {"corridor": "corridor_straight", "office": "office_turn", "lab": "lab_clutter",
+                  "hall": "paper_like_gait"}
+#: Issue 13's targets for t2fuzzy with a cached reference: ms/frame on the synthetic corpus,
+#: times faster than SIFT there, and ms/frame on the walking frames of every scene.
+T2FUZZY_TARGET_MS, SIFT_TARGET_RATIO, WALK_TARGET_MS = 2.0, 4.0, 3.0
+
+
+def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
+                             walk_frames: int = 80, seed: int = 0) -> dict[str, dict]:
+    """t2fuzzy against SIFT on every generator of the varied synthetic corpus, and t2fuzzy on
+    the walking frames of every scene; prints a table and returns the figures.
+
+    Synthetic: for each generator of :data:`stabilizer.testing.CORPUS_GENERATORS`,
+    ``n_scenes`` scenes (seeds ``seed``, ``seed + 1``, ...) with ``frames_per_scene`` moved
+    frames each (:func:`stabilizer.testing.corpus_frames`). Walking: ``walk_frames`` frames of
+    the scene's walk in :data:`WALK_SCENARIOS`, after the standing start, grouped by gait cycle
+    (:func:`simulated_scenes`; 0: no walk). Each figure is the median ms per frame with the
+    reference analysed once per scene or cycle (:func:`time_method`), one thread, on the wall
+    clock and in process CPU time (which other jobs sharing the machine disturb less).
+
+    Returns:
+        {"synthetic": {generator or "all generators": {"t2fuzzy", "sift", "t2fuzzy_cpu",
+         "sift_cpu"}}, "walking": {scene: {"t2fuzzy", "t2fuzzy_cpu"}}}, milliseconds.
+    """
+    from sim.harness.scenario import load_scenario
+    from stabilizer.testing import CORPUS_GENERATORS, corpus_frames
+
+    def timed(method, scenes):
+        return {method: frame_ms(method, scenes),
+                f"{method}_cpu": frame_ms(method, scenes, time.process_time)}
+
+    def medians(times):
+        return {key: float(np.median(values)) for key, values in times.items()}
+
+    print(f"t2fuzzy and sift, median ms per frame at {SHAPE[1]}x{SHAPE[0]}, one thread, "
+          f"reference analysed once; wall clock (process CPU time); {_load()}")
+    print(f"synthetic corpus: {n_scenes} scenes x {frames_per_scene} frames per generator, "
+          f"motions within +-15 deg, +-40 px (targets: t2fuzzy <= {T2FUZZY_TARGET_MS} ms, "
+          f">= {SIFT_TARGET_RATIO}x faster than sift)")
+    figures: dict[str, dict] = {"synthetic": {}, "walking": {}}
+    every_frame: dict[str, list] = {}
+    for generator in (*CORPUS_GENERATORS, "all generators"):
+        if generator in CORPUS_GENERATORS:
+            scenes = [corpus_frames(generator, seed + index, frames_per_scene)[:2]
+                      for index in range(n_scenes)]
+            times = {**timed("t2fuzzy", scenes), **timed("sift", scenes)}
+            for key, values in times.items():
+                every_frame.setdefault(key, []).extend(values)
+        else:  # the medians over every frame of the corpus
+            times = every_frame
+        ms = figures["synthetic"][generator] = medians(times)
+        print(f"{generator:>16}: t2fuzzy {ms['t2fuzzy']:6.2f} ({ms['t2fuzzy_cpu']:5.2f}) ms   "
+              f"sift {ms['sift']:6.2f} ({ms['sift_cpu']:5.2f}) ms   sift / t2fuzzy "
+              f"{ms['sift'] / ms['t2fuzzy']:5.2f} ({ms['sift_cpu'] / ms['t2fuzzy_cpu']:5.2f})")
+    if walk_frames > 0:
+        print(f"simulated walks: {walk_frames} frames per scene (target: t2fuzzy <= "
+              f"{WALK_TARGET_MS} ms)")
+    for scene, scenario in WALK_SCENARIOS.items() if walk_frames > 0 else ():
+        if load_scenario(scenario).scene != scene:
+            raise ValueError(f"scenario {scenario!r} no longer walks the {scene} scene")
+        ms = figures["walking"][scene] = medians(timed("t2fuzzy", simulated_scenes(
+            scenario, walk_frames)))
+        print(f"{scene:>16}: t2fuzzy {ms['t2fuzzy']:6.2f} ({ms['t2fuzzy_cpu']:5.2f}) ms   "
+              f"({scenario})")
+    print(_load())
+    return figures
 
 
 def walking_realtime_factor(sim_seconds: float = 20.0, gait: str = "default",
@@ -333,7 +412,8 @@ def _machine() -> str:
                        if line.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.platform()}, Python {platform.python_version()}"
+    return (f"{cpu}, {os.cpu_count()} cores, {platform.platform()}, "
+            f"Python {platform.python_version()}")
 
 
 def run_benchmarks(quick: bool = False, out_path=None) -> dict:
@@ -350,19 +430,25 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     physics_rtf = walking_realtime_factor(5.0 if quick else 20.0)
     print(f"walking physics + control, no rendering: {physics_rtf:.1f}x real time")
     render_tof_fps = render_fps(100 if quick else 300)
-    pipeline_frames = 45 if quick else 150
-    with tempfile.TemporaryDirectory() as scratch:
-        metrics = run(RunConfig(DEFAULT_SCENARIO, scratch, record=True,
-                                max_frames=pipeline_frames))
-    pipeline_rtf = metrics["run"]["realtime_factor"]
-    print(f"whole pipeline, {DEFAULT_SCENARIO}, {pipeline_frames} frames, "
-          f"{len(metrics['run']['methods'])} methods, recording on: {pipeline_rtf:.2f}x real time")
+    pipeline_frames = 45 if quick else None  # None: the scenario's whole duration
+    pipeline_rtf = {}
+    for label, methods, record in (("every method, recording on", None, True),
+                                   ("t2fuzzy alone, no recording", ("t2fuzzy",), False)):
+        with tempfile.TemporaryDirectory() as scratch:
+            metrics = run(RunConfig(DEFAULT_SCENARIO, scratch, methods=methods, record=record,
+                                    max_frames=pipeline_frames))
+        pipeline_rtf[label] = metrics["run"]["realtime_factor"]
+        print(f"egostab run {DEFAULT_SCENARIO}, {metrics['run']['frames_done']} frames, {label}: "
+              f"{pipeline_rtf[label]:.2f}x real time")
     sequences = rescoring(150 if quick else None)
+    corpus = t2fuzzy_corpus_benchmark(n_scenes=2 if quick else 4,
+                                      walk_frames=30 if quick else 80)
     figures = {"machine": _machine(), "date": time.strftime("%Y-%m-%d"),
                "load": f"before: {load_before}; after: {_load()}",
                "stabilizer_ms_synthetic": synthetic, "stabilizer_ms_simulated": walk,
                "physics_realtime_factor": physics_rtf, "render_tof_fps": render_tof_fps,
-               "pipeline_realtime_factor": pipeline_rtf, **sequences, "quick": quick}
+               "pipeline_realtime_factor": pipeline_rtf, **sequences, "t2fuzzy_corpus": corpus,
+               "quick": quick}
     if out_path is not None:
         write_text_atomic(Path(out_path), bench_markdown(figures))
     return figures
@@ -384,18 +470,30 @@ def bench_markdown(figures: dict) -> str:
               f"| walking physics + control, no rendering | "
               f"{figures['physics_realtime_factor']:.1f}x real time |",
               f"| SR4000 render + ToF, motion blur off | {figures['render_tof_fps']:.0f} frames/s |",
-              f"| whole pipeline, default scenario, every method, recording on | "
-              f"{figures['pipeline_realtime_factor']:.2f}x real time |",
+              *(f"| `egostab run` of the default scenario, {label} | {rtf:.2f}x real time |"
+                for label, rtf in figures["pipeline_realtime_factor"].items()),
               f"| re-scoring t2fuzzy alone on the recorded default scenario, one core | "
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
               f"| `egostab score`, every method, `--workers 2` against `--workers 1` | "
               f"{figures['score_workers1_s'] / figures['score_workers2_s']:.2f}x faster "
               f"({figures['score_workers1_s']:.1f} s / {figures['score_workers2_s']:.1f} s) |",
-              ""]
+              "", "t2fuzzy against SIFT on the varied synthetic corpus "
+              "(`python -m sim.harness.bench t2fuzzy-corpus`; "
+              "stabilizer.testing.CORPUS_GENERATORS) and on walking frames of every scene; "
+              "median ms per frame, wall clock (process CPU time):", "",
+              "| Frames | t2fuzzy ms | SIFT ms | SIFT / t2fuzzy |", "|---|---|---|---|"]
+    for generator, ms in figures["t2fuzzy_corpus"]["synthetic"].items():
+        lines.append(f"| {generator} | {ms['t2fuzzy']:.2f} ({ms['t2fuzzy_cpu']:.2f}) | "
+                     f"{ms['sift']:.2f} ({ms['sift_cpu']:.2f}) | "
+                     f"{ms['sift'] / ms['t2fuzzy']:.2f} |")
+    for scene, ms in figures["t2fuzzy_corpus"]["walking"].items():
+        lines.append(f"| walking, {scene} | {ms['t2fuzzy']:.2f} ({ms['t2fuzzy_cpu']:.2f}) | | |")
+    lines.append("")
     return "\n".join(lines)
 
 
 COMPONENTS = {
+    "t2fuzzy-corpus": t2fuzzy_corpus_benchmark,
     "rescoring": lambda: rescoring(150),
     "ground-truth": lambda: (ground_truth_ms(stride=2), ground_truth_ms(stride=1)),
     "scoring": scoring_ms,

@@ -171,3 +171,48 @@ def test_bad_cleaner_parameters_raise():
         LabelCleaner(morph_size=4)
     with pytest.raises(ValueError):
         LabelCleaner(min_area=-1)
+
+
+def _textbook_fit(level_counts, seeds, m1, m2, tol, max_iter):
+    """IT2-FCM on the histogram written as the formulas read: interval_memberships, then
+    karnik_mendel on [lower^m, upper^m] times the counts, the crisp centres, the stopping rule."""
+    x = np.flatnonzero(level_counts[1:] > 0) + 1.0
+    counts = level_counts[x.astype(int)]
+    m = (m1 + m2) / 2.0
+    centres = np.sort(np.asarray(seeds, np.float64))
+    for iteration in range(1, max_iter + 1):
+        upper, lower = interval_memberships(x, centres, m1, m2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            v_left, v_right = karnik_mendel(x, lower ** m * counts, upper ** m * counts)
+        new = (v_left + v_right) / 2.0
+        done = np.max(np.abs(new - centres)) < tol
+        centres = new
+        if done:
+            break
+    return centres, iteration
+
+
+@pytest.mark.parametrize("on_levels", [False, True])
+def test_fit_equals_the_formulas_to_the_last_bit(on_levels):
+    """The stacked, buffer-reusing update changes no bit of the centres or the iteration
+    count, also when a seed sits exactly on a gray level (a membership of 1 there)."""
+    rng = np.random.default_rng(11)
+    fcm = IT2FCM(m1=2.0, m2=5.0, tol=1e-2, max_iter=100)
+    for _ in range(25):
+        counts = np.zeros(256)
+        levels = rng.choice(np.arange(1, 256), rng.integers(3, 200), replace=False)
+        counts[levels] = rng.integers(1, 400, levels.size)
+        n_seeds = int(rng.integers(1, 5))
+        seeds = (rng.choice(levels, n_seeds, replace=False).astype(float) if on_levels
+                 else rng.uniform(1, 255, n_seeds))
+        fitted = fcm.fit(counts, seeds)
+        centres, iterations = _textbook_fit(counts, seeds, 2.0, 5.0, 1e-2, 100)
+        assert fitted.iterations == iterations
+        np.testing.assert_array_equal(fitted.centres, centres)
+
+
+def test_a_histogram_without_valid_pixels_is_refused():
+    counts = np.zeros(256)
+    counts[0] = 500  # invalid pixels only
+    with pytest.raises(ValueError, match="level_counts has no valid pixel"):
+        IT2FCM().fit(counts, np.array([10.0, 100.0]))

@@ -1,0 +1,31 @@
+"""The t2fuzzy corpus benchmark of sim.harness.bench (its synthetic part: the walks render)."""
+
+import numpy as np
+
+from sim.harness import bench
+from stabilizer.testing import CORPUS_GENERATORS
+
+
+def test_corpus_benchmark_times_both_methods_on_every_generator(capsys):
+    figures = bench.t2fuzzy_corpus_benchmark(n_scenes=1, frames_per_scene=2, walk_frames=0)
+    assert set(figures["synthetic"]) == {*CORPUS_GENERATORS, "all generators"}
+    assert figures["walking"] == {}
+    for generator, ms in figures["synthetic"].items():
+        assert set(ms) == {"t2fuzzy", "sift", "t2fuzzy_cpu", "sift_cpu"}
+        assert all(np.isfinite(value) and 0 < value < 1e4 for value in ms.values()), generator
+    printed = capsys.readouterr().out
+    assert "sift / t2fuzzy" in printed and "load average" in printed
+    assert all(f"{generator}: t2fuzzy" in printed for generator in figures["synthetic"])
+
+
+def test_the_walking_scenarios_cover_every_scene():
+    from sim.world.scenes import SCENES
+
+    assert set(bench.WALK_SCENARIOS) == set(SCENES)
+
+
+def test_time_method_uses_the_clock_it_is_given():
+    ticks = iter(range(1000))
+    scenes = [(np.zeros((144, 176), np.uint8), [np.zeros((144, 176), np.uint8)] * 3)]
+    # Each estimate spans one tick of this clock: 1 ms per frame whatever the work took.
+    assert bench.time_method("t2fuzzy", scenes, clock=lambda: next(ticks) * 1e-3) == 1.0
