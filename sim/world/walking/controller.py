@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from sim.world.humanoid import LEG_JOINTS, MODEL_NAME, SIDES
+from sim.world.walking.capture_point import CapturePointStepper
 from sim.world.walking.footsteps import SIDE_SIGN, FootstepPlanner, Pose2D
 from sim.world.walking.gait import GaitParams
 from sim.world.walking.leg_ik import LegIK, rot_y, rot_z
@@ -41,11 +42,14 @@ class WalkingController:
             yaw-rate commands, minus the torso's measured heading) turned back per step; it
             corrects the slow yaw drift of the feet slipping on the floor.
         max_heading_correction_deg: limit of that correction per step.
+        step_adjustment: a CapturePointStepper (push recovery: moves the step under way from
+            the measured capture point), or None for none.
     """
 
     def __init__(self, model: mujoco.MjModel, gait: GaitParams, control_period_s: float,
                  preview_s: float = 1.6, heading_gain: float = 0.3,
-                 max_heading_correction_deg: float = 4.0):
+                 max_heading_correction_deg: float = 4.0,
+                 step_adjustment: CapturePointStepper | None = None):
         self.model = model
         self.gait = gait
         self.control_period_s = control_period_s
@@ -84,6 +88,7 @@ class WalkingController:
         self._heading_gain = heading_gain
         self._max_heading_correction = math.radians(max_heading_correction_deg)
         self._yaw_rate = 0.0
+        self.step_adjustment = step_adjustment
         self.targets = np.zeros(model.nu)
         self.planner: FootstepPlanner | None = None
 
@@ -142,6 +147,9 @@ class WalkingController:
         self.planner.turn_correction_rad = _clip(self._heading_gain * heading_error,
                                                  self._max_heading_correction)
         self.planner.update(now_s, self._preview_times[-1])
+        if self.step_adjustment is not None:
+            self.step_adjustment.update(now_s, data, self.planner)
+            self.planner.update(now_s, self._preview_times[-1])
         reference = self.planner.zmp_reference(now_s + self._preview_times)
         self._preview.step(reference)
         roll, pitch = math.atan2(torso_mat[7], torso_mat[8]), -math.asin(torso_mat[6])

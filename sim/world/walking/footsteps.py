@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,7 +46,9 @@ class Step:
 
     ``zmp_from`` is where the ZMP reference starts (the previous support foot or the middle of
     the feet); ``feet_after`` are both feet's poses (left, right) once the step is done and
-    ``centre_after`` the walking centre then.
+    ``centre_after`` the walking centre then. ``centre_offset`` (world x, y) is how far step
+    adjustments have moved that centre from the commanded path; ``planned_swing_to`` is the
+    swing target before any adjustment of this step.
     """
 
     start_s: float
@@ -59,6 +61,8 @@ class Step:
     swing_to: Pose2D
     feet_after: tuple[Pose2D, Pose2D]
     centre_after: Pose2D
+    centre_offset: tuple[float, float]
+    planned_swing_to: Pose2D
 
     @property
     def end_s(self) -> float:
@@ -77,17 +81,23 @@ def _mid(a: Pose2D, b: Pose2D) -> Pose2D:
 class FootstepPlanner:
     """Online footstep plan covering at least the ZMP preview horizon.
 
+    The step under way can be moved (``adjust_current_step``, push recovery): the plan after
+    it is then re-planned from the moved foot, and each later step brings the walking centre
+    back towards the commanded path by at most ``path_return_m``.
+
     Args:
         step_period_s, double_support_ratio, step_width_m, step_height_m, lateral_sway_m:
             as in GaitParams.
         start_delay_s: double support before the first step from standing, so the body can
             shift over the first support foot.
         settle_s: time for the ZMP to return between the feet after the last step.
+        path_return_m: largest move of the walking centre back towards the commanded path per
+            step, after a step adjustment.
     """
 
     def __init__(self, centre: Pose2D, step_period_s: float, double_support_ratio: float,
                  step_width_m: float, step_height_m: float, lateral_sway_m: float,
-                 start_delay_s: float = 0.5, settle_s: float = 0.5):
+                 start_delay_s: float = 0.5, settle_s: float = 0.5, path_return_m: float = 0.02):
         self.step_period_s = step_period_s
         self.double_support_s = double_support_ratio * step_period_s
         self.single_support_s = step_period_s - self.double_support_s
@@ -96,11 +106,13 @@ class FootstepPlanner:
         self.lateral_sway_m = lateral_sway_m
         self.start_delay_s = start_delay_s
         self.settle_s = settle_s
+        self.path_return_m = path_return_m
         self.steps: deque[Step] = deque()
         # Plan's end state (after the last planned step) and the state reached so far.
         self.centre = centre
         self.feet = (centre.moved(0.0, step_width_m / 2), centre.moved(0.0, -step_width_m / 2))
         self.feet_landed = self.feet
+        self.centre_offset = (0.0, 0.0)        # of the plan's end state from the commanded path
         self._advance = (0.0, 0.0)            # forward m and turn rad per step
         #: Extra turn (rad) added to each newly planned step while walking: heading feedback.
         self.turn_correction_rad = 0.0
@@ -118,9 +130,14 @@ class FootstepPlanner:
         self._advance = advance
         while self.steps and self.steps[-1].start_s > now_s:
             self.steps.pop()
+        self._replan_from_last()
+
+    def _replan_from_last(self) -> None:
+        """Set the plan's end state to the last step kept (or the landed feet)."""
         self._breakpoints = None
         if self.steps:
-            self.feet, self.centre = self.steps[-1].feet_after, self.steps[-1].centre_after
+            last = self.steps[-1]
+            self.feet, self.centre, self.centre_offset = last.feet_after, last.centre_after, last.centre_offset
         else:
             self.feet = self.feet_landed
 
@@ -145,7 +162,7 @@ class FootstepPlanner:
             if step is None:
                 break
             self.steps.append(step)
-            self.feet, self.centre = step.feet_after, step.centre_after
+            self.feet, self.centre, self.centre_offset = step.feet_after, step.centre_after, step.centre_offset
             self._breakpoints = None
         head = self.steps[0] if self.steps and self.steps[0].start_s <= now_s else None
         if head is not None and head is not self._current:
@@ -171,7 +188,11 @@ class FootstepPlanner:
         support = 1 - swing
         if self.walking_commanded:
             turn += self.turn_correction_rad
-        centre = self.centre.moved(forward, 0.0, turn)
+        offset_x, offset_y = self.centre_offset
+        on_path = Pose2D(self.centre.x - offset_x, self.centre.y - offset_y, self.centre.yaw)
+        offset = _shrunk((offset_x, offset_y), self.path_return_m)
+        centre = on_path.moved(forward, 0.0, turn)
+        centre = Pose2D(centre.x + offset[0], centre.y + offset[1], centre.yaw)
         swing_to = centre.moved(0.0, SIDE_SIGN[swing] * self.step_width_m / 2)
         support_pose = self.feet[support]
         zmp_on = support_pose.moved(0.0, SIDE_SIGN[support] * self.lateral_sway_m).xy
@@ -179,7 +200,41 @@ class FootstepPlanner:
         feet_after = (swing_to, support_pose) if swing == LEFT else (support_pose, swing_to)
         double = self.start_delay_s if previous is None else self.double_support_s
         return Step(start_s, double, self.single_support_s, support, zmp_from, zmp_on,
-                    self.feet[swing], swing_to, feet_after, centre)
+                    self.feet[swing], swing_to, feet_after, centre, offset, swing_to)
+
+    def adjust_current_step(self, offset_xy, now_s: float) -> None:
+        """Move the swing foot's target of the step under way to its planned target plus
+        ``offset_xy`` (world, m), and re-plan the steps after it from there: the walking
+        centre moves with the foot, then returns to the commanded path (``path_return_m`` per
+        step). The swing path is re-anchored so the foot does not jump at ``now_s``. No-op
+        while standing."""
+        step = self._current
+        if step is None:
+            return
+        target = step.planned_swing_to
+        swing_to = Pose2D(target.x + float(offset_xy[0]), target.y + float(offset_xy[1]), target.yaw)
+        if swing_to == step.swing_to:
+            return
+        shift = (swing_to.x - step.swing_to.x, swing_to.y - step.swing_to.y)
+        # Keep the swing foot where it is now: a + s (b - a) = a' + s (b' - a').
+        progress = _swing_progress(step, now_s)
+        if progress >= 1.0:
+            raise ValueError(f"adjust_current_step: the swing foot has landed at {now_s!r} s")
+        a = step.swing_from
+        swing_from = (a if progress <= 0.0 else
+                      Pose2D(a.x - progress * shift[0] / (1.0 - progress),
+                             a.y - progress * shift[1] / (1.0 - progress), a.yaw))
+        centre = step.centre_after
+        feet_after = ((swing_to, step.feet_after[1]) if step.swing_side == LEFT
+                      else (step.feet_after[0], swing_to))
+        moved = replace(step, swing_from=swing_from, swing_to=swing_to, feet_after=feet_after,
+                        centre_after=Pose2D(centre.x + shift[0], centre.y + shift[1], centre.yaw),
+                        centre_offset=(step.centre_offset[0] + shift[0], step.centre_offset[1] + shift[1]))
+        while self.steps[-1] is not step:
+            self.steps.pop()
+        self.steps[-1] = moved
+        self._current = moved
+        self._replan_from_last()
 
     # -- references ---------------------------------------------------------------------
     def zmp_reference(self, times_s: np.ndarray) -> np.ndarray:
@@ -213,9 +268,8 @@ class FootstepPlanner:
         step = self._current
         if step is None:
             return self.feet_landed, (0.0, 0.0)
-        phase = (now_s - step.start_s - step.double_support_s) / step.single_support_s
-        phase = min(1.0, max(0.0, phase))
-        s = phase - math.sin(2.0 * math.pi * phase) / (2.0 * math.pi)
+        phase = _swing_phase(step, now_s)
+        s = _swing_progress(step, now_s)
         a, b = step.swing_from, step.swing_to
         swing = Pose2D(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y),
                        a.yaw + s * math.remainder(b.yaw - a.yaw, 2 * math.pi))
@@ -226,3 +280,25 @@ class FootstepPlanner:
         feet[step.swing_side] = swing
         lifts[step.swing_side] = lift
         return (feet[0], feet[1]), (lifts[0], lifts[1])
+
+
+def _shrunk(vector: tuple[float, float], by: float) -> tuple[float, float]:
+    """``vector`` shortened by ``by`` (zero if shorter)."""
+    length = math.hypot(*vector)
+    if length <= by:
+        return (0.0, 0.0)
+    scale = (length - by) / length
+    return (vector[0] * scale, vector[1] * scale)
+
+
+def _swing_phase(step: Step, now_s: float) -> float:
+    """Fraction of the step's single support elapsed at ``now_s``, in [0, 1]."""
+    phase = (now_s - step.start_s - step.double_support_s) / step.single_support_s
+    return min(1.0, max(0.0, phase))
+
+
+def _swing_progress(step: Step, now_s: float) -> float:
+    """Fraction of the swing path covered at ``now_s``: a cycloid of the phase (zero velocity
+    at lift-off and touch-down)."""
+    phase = _swing_phase(step, now_s)
+    return phase - math.sin(2.0 * math.pi * phase) / (2.0 * math.pi)
