@@ -1,50 +1,28 @@
-"""The trust check (stabilizer.verification) and the promise it backs: every "ok" is trustworthy.
+"""The trust check (stabilizer.verification): what it measures and when an estimate fails it.
 
-Properties, for every method of ``stabilizer.available_methods()`` (hypothesis, derandomized):
-
-- frames with no relation to each other (independent random noise, two different synthetic
-  scenes) never give "ok";
-- identical frames give "ok" with (near) zero motion, or a failure; never an invented motion,
-  that is more than :data:`INVENTED` degrees or pixels;
-- a frame moved by a known motion gives that motion within :data:`ROTATION_TOLERANCE_DEG` and
-  :data:`SHIFT_TOLERANCE_PX`, or a failure; never an "ok" that is wrong.
-
-The tolerances are what the check can tell apart (docs/method.md, section 11): it rejects
-estimates that misalign the frames' depth edges, so a wrong rotation about the image centre of
-a scene whose structure sits near the centre passes up to several degrees.
-
-Beside them: image sizes are checked up front for every method, in the user's terms.
+The property it backs for every method (unrelated frames never "ok", identical frames no
+invented motion, a known motion found or a failure) is tested over seeded random cases in
+tests/stabilizer/test_robustness.py. Beside the check: image sizes are checked up front for every
+method, in the user's terms.
 """
 
 from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 import stabilizer
 from stabilizer import Motion, Stabilizer, apply_motion, available_methods, estimate
 from stabilizer.api import MAX_SIDE, _estimator_class
-from stabilizer.motion import wrap_angle_deg
+from stabilizer.motion import motion_from_rotation, transform_points
 from stabilizer.t2fuzzy import TranslationParams
-from stabilizer.testing import SR4000_SHAPE, make_depth_scene, random_motion
+from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import UNVERIFIED, VerificationParams, Verifier
 
 METHODS = available_methods()
-#: An estimate on identical frames larger than this (degrees or pixels) is an invented motion.
-#: t2fuzzy's rotation search climbs the correlation peak in 1.5-degree steps and interpolates
-#: between the last three; on identical frames it can end about a degree off, which the check
-#: cannot see (the frames still line up within a pixel or so).
-INVENTED = 1.5
-#: An "ok" estimate of a known motion off by more than these is wrong.
-ROTATION_TOLERANCE_DEG = 10.0
-SHIFT_TOLERANCE_PX = 10.0
-
-PROPERTY = settings(derandomize=True, deadline=None, database=None, max_examples=25,
-                    suppress_health_check=[HealthCheck.too_slow])
 
 
 def min_side(method: str) -> int:
@@ -53,64 +31,6 @@ def min_side(method: str) -> int:
 
 def scene(seed: int, shape) -> np.ndarray:
     return stabilizer.depth_to_disparity(make_depth_scene(seed, shape))
-
-
-def shapes(method: str, smallest: int = 0):
-    """Frame shapes from the method's smallest side (or ``smallest``) to a little over the
-    SR4000's."""
-    side = st.integers(max(min_side(method), smallest), 200)
-    return st.tuples(side, side)
-
-
-#: Two different synthetic scenes are a wall with four boxes, cylinders or slanted planes each;
-#: in frames much smaller than the SR4000's, one object of each can coincide after a rotation
-#: (say two tilted squares of the same size), and lining those up is a true match of what the
-#: frames show. From this side on, the scenes hold enough structure to differ.
-DIFFERENT_SCENES_MIN_SIDE = 128
-
-
-# ----------------------------------------------------------------------------- properties
-@pytest.mark.parametrize("method", METHODS)
-@settings(PROPERTY)
-@given(data=st.data(), seed=st.integers(0, 2**31 - 1), kind=st.sampled_from(("noise", "scenes")))
-def test_unrelated_frames_never_give_ok(method, data, seed, kind):
-    shape = data.draw(shapes(method, DIFFERENT_SCENES_MIN_SIDE if kind == "scenes" else 0))
-    rng = np.random.default_rng(seed)
-    if kind == "noise":
-        reference, current = (rng.integers(0, 256, shape, dtype=np.uint8) for _ in range(2))
-    else:
-        reference, current = scene(seed, shape), scene(seed + 1, shape)
-    motion = estimate(reference, current, method)
-    assert not motion.ok, f"{method} {kind} {shape}: ok {motion.as_tuple()}"
-
-
-@pytest.mark.parametrize("method", METHODS)
-@settings(PROPERTY)
-@given(data=st.data(), seed=st.integers(0, 2**31 - 1), kind=st.sampled_from(("noise", "scene")))
-def test_identical_frames_give_no_invented_motion(method, data, seed, kind):
-    shape = data.draw(shapes(method))
-    rng = np.random.default_rng(seed)
-    frame = rng.integers(0, 256, shape, dtype=np.uint8) if kind == "noise" else scene(seed, shape)
-    motion = estimate(frame, frame.copy(), method)
-    if motion.ok:
-        assert max(abs(value) for value in motion.as_tuple()) <= INVENTED, (
-            f"{method} {kind} {shape}: invented {motion.as_tuple()}")
-
-
-@pytest.mark.parametrize("method", METHODS)
-@settings(PROPERTY)
-@given(data=st.data(), seed=st.integers(0, 2**31 - 1))
-def test_known_motion_is_found_or_fails(method, data, seed):
-    shape = data.draw(shapes(method))
-    rng = np.random.default_rng(seed)
-    reference = scene(seed, shape)
-    truth = random_motion(rng, max_angle_deg=15.0, max_shift_px=0.2 * min(shape))
-    motion = estimate(reference, apply_motion(reference, truth), method)
-    if motion.ok:
-        angle_error = abs(float(wrap_angle_deg(motion.angle_deg - truth.angle_deg)))
-        shift_error = math.hypot(motion.dx - truth.dx, motion.dy - truth.dy)
-        assert angle_error <= ROTATION_TOLERANCE_DEG and shift_error <= SHIFT_TOLERANCE_PX, (
-            f"{method} {shape}: ok {motion.as_tuple()} for {truth.as_tuple()}")
 
 
 # ----------------------------------------------------------------------------- the check itself
@@ -126,6 +46,11 @@ def test_the_true_motion_passes_with_its_measurements():
     assert 0.5 < checked.diagnostics["verify_overlap"] <= 1.0
     assert checked.diagnostics["verify_null_correlation"] < checked.diagnostics[
         "verify_correlation"]
+    # The check's own optimum lies at the truth: the estimate is where the frames line up best.
+    assert checked.diagnostics["verify_offset_deg"] < 0.5
+    assert checked.diagnostics["verify_offset_px"] < 1.0
+    assert checked.diagnostics["verify_optimum_correlation"] >= checked.diagnostics[
+        "verify_correlation"] - 0.01
 
 
 @pytest.mark.parametrize("wrong, failed", [
@@ -144,6 +69,68 @@ def test_a_wrong_motion_fails_with_the_measured_values(wrong, failed):
 def test_a_motion_invented_on_frames_that_did_not_move_fails():
     checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(1.5, 1.0, -1.0))
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "no_motion"
+    assert checked.diagnostics["verify_optimum"] == pytest.approx((0.0, 0.0, 0.0), abs=0.05)
+
+
+def test_a_tiny_motion_on_frames_that_did_not_move_passes():
+    checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(0.5, 0.5, -0.5))
+    assert checked.ok
+
+
+def test_an_estimate_away_from_the_optimum_fails():
+    """4 degrees off: the edges still overlap enough for the correlation, but the check's own
+    optimum lies at the truth, farther than max_offset_deg from the estimate."""
+    wrong = Motion(TRUTH.angle_deg + 4.0, TRUTH.dx, TRUTH.dy)
+    checked = Verifier(REFERENCE)(CURRENT, wrong)
+    assert checked.diagnostics["verify_optimum_correlation"] > VerificationParams().min_correlation
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "not_optimum"
+    assert checked.diagnostics["verify_optimum"][0] == pytest.approx(TRUTH.angle_deg, abs=0.5)
+
+
+def test_a_half_turn_that_lines_up_a_symmetric_object_fails():
+    """A box is point-symmetric: turned by 180 degrees more about its centre, it lines up as
+    well as under the truth. An estimate beyond the searched angles must explain the frames
+    clearly better than the best motion within them; with 190 degrees among the searched
+    angles, the same estimate is not beyond them and passes (the rule is what fails it)."""
+    depth = np.full(SR4000_SHAPE, 4.5, np.float32)
+    mask = np.zeros(SR4000_SHAPE, np.uint8)
+    cv2.fillPoly(mask, [np.rint(cv2.boxPoints(((110.0, 60.0), (40.0, 26.0), 20.0))).astype(
+        np.int32)], 1)
+    depth[mask.astype(bool)] = 1.5
+    reference = stabilizer.depth_to_disparity(depth)
+    truth = Motion(3.0, 5.0, -4.0)
+    current = apply_motion(reference, truth)
+    centre = np.array([110.0, 60.0])
+    half_turn = motion_from_rotation(math.radians(183.0), centre,
+                                     transform_points(truth, centre[None], SR4000_SHAPE)[0],
+                                     SR4000_SHAPE)
+    checked = Verifier(reference)(current, half_turn)
+    assert checked.diagnostics["verify_correlation"] > 0.9
+    assert checked.status == UNVERIFIED
+    assert checked.diagnostics["verify_failed"] == "better_candidate"
+    assert checked.diagnostics["verify_candidate"][0] == pytest.approx(truth.angle_deg, abs=1.0)
+    wide = VerificationParams(candidate_angles_deg=(-15.0, 15.0, 190.0))
+    assert Verifier(reference, wide)(current, half_turn).ok
+
+
+def noisy(image: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
+    """ToF-like noise: Gaussian of ``sigma`` gray levels on the valid pixels."""
+    values = np.clip(np.rint(image + rng.normal(0.0, sigma, image.shape)), 1, 255)
+    return np.where(image > 0, values, 0).astype(np.uint8)
+
+
+def test_an_estimate_two_pixels_off_on_noisy_frames_is_judged_at_the_optimum():
+    """On noisy frames the edge correlation falls steeply with a few pixels of offset (here below
+    min_correlation at 3 px); the check judges the correlation at its optimum, so an estimate
+    within max_offset_px of it is not failed for the noise."""
+    rng = np.random.default_rng(3)
+    reference, current = noisy(REFERENCE, rng, 16.0), noisy(CURRENT, rng, 16.0)
+    near = Motion(TRUTH.angle_deg, TRUTH.dx + 3.0, TRUTH.dy)
+    checked = Verifier(reference)(current, near)
+    diagnostics = checked.diagnostics
+    assert diagnostics["verify_correlation"] < VerificationParams().min_correlation
+    assert diagnostics["verify_optimum_correlation"] > VerificationParams().min_correlation
+    assert checked.ok
 
 
 def test_failures_and_method_diagnostics_pass_through():
@@ -162,7 +149,9 @@ def test_thresholds_are_parameters():
 
 @pytest.mark.parametrize("bad", [dict(min_correlation=1.5), dict(min_overlap=-0.1),
                                  dict(null_margin=-1.0), dict(sigma_px=0.0),
-                                 dict(clip_factor=0.0)])
+                                 dict(clip_factor=0.0), dict(max_offset_deg=-1.0),
+                                 dict(still_px=-0.5), dict(optimum_iterations=0),
+                                 dict(candidate_angles_deg=())])
 def test_bad_thresholds_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         VerificationParams(**bad)
