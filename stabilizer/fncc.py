@@ -23,6 +23,7 @@ current frame, whose offset is then the translation of the docs/design.md motion
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -181,20 +182,34 @@ class RotatedTemplate:
         if valid is not None and np.shape(valid) != reference.shape:
             raise ValueError(f"valid must have the reference's shape {reference.shape}; got "
                              f"{np.shape(valid)}")
-        self.margin = int(margin)
-        self.size = (width - 2 * self.margin, height - 2 * self.margin)
         self._reference = reference.astype(np.float32)
         self._valid = (reference > 0 if valid is None else valid).astype(np.uint8)
         self._centre = ((width - 1) / 2.0, (height - 1) / 2.0) if centre is None else centre
+        rows, columns = np.nonzero(self._valid == 0)
+        self._nearest_invalid = float(np.min(np.hypot(columns - self._centre[0],
+                                                      rows - self._centre[1]), initial=np.inf))
+        self._set_margin(int(margin))
+
+    def _set_margin(self, margin: int) -> None:
+        height, width = self._reference.shape
+        self.margin = margin
+        self.size = (width - 2 * margin, height - 2 * margin)
         # Every rotation of the template lies in the disc through its corners: if that disc is
         # all valid, no rotated template needs a mask.
-        radius = np.hypot(*self.size) / 2.0 + 1.0
-        rows, columns = np.mgrid[:height, :width]
-        disc = np.hypot(columns - self._centre[0], rows - self._centre[1]) <= radius
-        self._needs_mask = bool(np.any(disc & (self._valid == 0)))
+        self._needs_mask = self._nearest_invalid <= np.hypot(*self.size) / 2.0 + 1.0
         # Rotation 0 is asked for on many frames (a translation-only guess, the identity
         # candidate): warp it once.
         self._upright = self._rotated(0.0)
+
+    def with_margin(self, margin: int) -> RotatedTemplate:
+        """The same reference, centre and validity with another ``margin`` (no copy of them)."""
+        height, width = self._reference.shape
+        if not 0 <= 2 * int(margin) < min(height, width):
+            raise ValueError(f"margin must be in [0, {(min(height, width) - 1) // 2}] for a "
+                             f"{height} x {width} reference; got {margin}")
+        other = copy.copy(self)
+        other._set_margin(int(margin))
+        return other
 
     def template(self, angle_deg: float) -> tuple[np.ndarray, np.ndarray | None]:
         """The template at ``angle_deg`` and its validity mask (None when all valid)."""
@@ -242,3 +257,151 @@ class RotatedTemplate:
         found = match_template(image, template, mask)
         return TemplateMatch(found.x + left - self.margin, found.y + top - self.margin,
                              found.peak, found.at_border, found.height)
+
+
+@dataclass(frozen=True)
+class MaskedSpectra:
+    """The DFTs one frame contributes to :class:`MaskedCorrelation`: of the frame (made
+    zero-mean on its valid pixels, 0 elsewhere), of its square and of its validity mask; the
+    number of valid pixels and their sum of squares (zero mean)."""
+
+    image: np.ndarray
+    square: np.ndarray
+    mask: np.ndarray
+    n_valid: int
+    energy: float
+
+
+#: Relative to a frame's whole sum of squares, the least sum of squares on an overlap that is
+#: not a flat frame: float32 DFTs leave rounding residues of about 1e-5 of it.
+FLAT_SPREAD = 1e-4
+
+
+class MaskedCorrelation:
+    """Eq. (7) over the whole overlap of two frames, each with its own validity mask, for every
+    shift up to ``max_shift`` along each axis: Padfield's (2012) masked FNCC.
+
+    Lewis's FNCC (:func:`match_template`) needs the template inside the image at every shift,
+    so a search range of ``m`` pixels leaves a template ``m`` pixels in from every side: the
+    structures near the border, which often pin a motion down (a pillar at the side of a hall,
+    the edges of a doorway), are left out, and shifts beyond ``m`` cannot be found. Padfield
+    writes the NCC of two images restricted to the pixels both measure at a shift d,
+
+        gamma(d) = (S_fg - S_f S_g / N) / sqrt((S_ff - S_f^2 / N) (S_gg - S_g^2 / N)),
+
+    with N the number of pixels valid in both, S_fg = sum f(x) g(x + d), S_f = sum f(x)
+    m_g(x + d), S_g = sum m_f(x) g(x + d), S_ff = sum f(x)^2 m_g(x + d) and S_gg = sum m_f(x)
+    g(x + d)^2 (f, g set to 0 where invalid): six correlations, each a product of DFTs (float32,
+    sizes rounded up to multiples of 16, which OpenCV transforms fastest). Shifts whose overlap
+    holds fewer than ``min_overlap`` of the fixed frame's valid pixels, or on which either frame
+    is flat, score -inf.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        (height, width) of both frames.
+    max_shift : int
+        Largest shift searched along each axis, pixels; less than either side.
+    min_overlap : float
+        Least share, in (0, 1], of the fixed frame's valid pixels a shift must keep.
+
+    References
+    ----------
+    .. [1] D. Padfield, "Masked object registration in the Fourier domain", IEEE Trans. Image
+           Processing 21(5), 2706-2718, 2012.
+    .. [2] J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995, 120-123.
+    """
+
+    def __init__(self, shape: tuple[int, int], max_shift: int, min_overlap: float):
+        height, width = shape
+        if not 0 < int(max_shift) < min(height, width):
+            raise ValueError(f"max_shift must be in [1, {min(height, width) - 1}] for "
+                             f"{height} x {width} frames; got {max_shift}")
+        if not 0.0 < min_overlap <= 1.0:
+            raise ValueError(f"min_overlap must be in (0, 1]; got {min_overlap}")
+        self.shape = (int(height), int(width))
+        self.max_shift = int(max_shift)
+        self.min_overlap = float(min_overlap)
+        # Padding of at least max_shift keeps the circular correlation of the DFTs from
+        # wrapping one frame's pixels onto the other's at any searched shift.
+        self._size = tuple(cv2.getOptimalDFTSize(-(-(side + self.max_shift) // 16) * 16)
+                           for side in self.shape)
+
+    def spectra(self, image: np.ndarray, valid: np.ndarray, moving: bool) -> MaskedSpectra:
+        """The DFTs of ``image`` (float) on its ``valid`` pixels (bool, same shape), as the
+        fixed frame or as the ``moving`` one (placed ``max_shift`` pixels down and right in the
+        padded DFT, so that the searched shifts come out as one block)."""
+        if image.shape != self.shape or valid.shape != self.shape:
+            raise ValueError(f"image and valid must have the shape {self.shape}; got "
+                             f"{image.shape} and {valid.shape}")
+        mask = valid.astype(np.float32)
+        n_valid = int(np.count_nonzero(valid))
+        # Zero mean on the valid pixels: the same NCC, and sums of squares small enough that
+        # S_ff - S_f^2 / N does not cancel away.
+        values = image.astype(np.float32)
+        values = (values - float(cv2.mean(values, mask=valid.view(np.uint8))[0])) * mask
+        square = values * values
+        offset = self.max_shift if moving else 0
+        return MaskedSpectra(self._dft(values, offset), self._dft(square, offset),
+                             self._dft(mask, offset), n_valid, float(square.sum()))
+
+    def _dft(self, array: np.ndarray, offset: int) -> np.ndarray:
+        padded = np.zeros(self._size, np.float32)
+        padded[offset:offset + self.shape[0], offset:offset + self.shape[1]] = array
+        return cv2.dft(padded)
+
+    def _correlation(self, fixed: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        """sum_x a(x) b(x + d) over the searched shifts d, rows dy and columns dx."""
+        product = cv2.mulSpectrums(moving, fixed, 0, conjB=True)
+        full = cv2.idft(product, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+        span = 2 * self.max_shift + 1  # the moving frame sits max_shift down and right
+        return full[:span, :span]
+
+    def surface(self, fixed: MaskedSpectra, moving: MaskedSpectra) -> np.ndarray:
+        """NCC of ``fixed``(x) with ``moving``(x + d) for d in [-max_shift, max_shift]^2,
+        rows dy and columns dx; -inf where the overlap is too small or a frame is flat on it."""
+        overlap = np.rint(self._correlation(fixed.mask, moving.mask))
+        s_f = self._correlation(fixed.image, moving.mask)
+        s_g = self._correlation(fixed.mask, moving.image)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inverse_n = 1.0 / overlap
+            numerator = self._correlation(fixed.image, moving.image) - s_f * s_g * inverse_n
+            spread_f = self._correlation(fixed.square, moving.mask) - s_f * s_f * inverse_n
+            spread_g = self._correlation(fixed.mask, moving.square) - s_g * s_g * inverse_n
+            ncc = numerator / np.sqrt(spread_f * spread_g)
+        usable = ((overlap >= max(self.min_overlap * fixed.n_valid, 2.0))
+                  & (spread_f > FLAT_SPREAD * fixed.energy)
+                  & (spread_g > FLAT_SPREAD * moving.energy) & np.isfinite(ncc))
+        return np.where(usable, np.clip(ncc, -1.0, 1.0), -np.inf)
+
+    def match(self, fixed: MaskedSpectra, moving: MaskedSpectra) -> TemplateMatch:
+        """The shift d of the highest NCC, refined by a parabola along each axis."""
+        return surface_peak(self.surface(fixed, moving), self.max_shift)
+
+
+def surface_peak(scores: np.ndarray, max_shift: int) -> TemplateMatch:
+    """The peak of a correlation surface over shifts [-max_shift, max_shift]^2 (rows dy,
+    columns dx), refined by a parabola along each axis as :func:`match_template` does; a peak
+    whose neighbour along an axis is not finite or is outside the surface is not refined along
+    it and is flagged ``at_border``. NaN shift and peak when no score is finite."""
+    row, col = np.unravel_index(int(np.argmax(scores)), scores.shape)
+    peak = float(scores[row, col])
+    if not math.isfinite(peak):
+        return TemplateMatch(np.nan, np.nan, np.nan, True)
+    x, y, height, at_border = float(col), float(row), peak, False
+    for axis, index in ((1, col), (0, row)):
+        if not 0 < index < scores.shape[axis] - 1:
+            at_border = True
+            continue
+        before = scores[row, col - 1] if axis == 1 else scores[row - 1, col]
+        after = scores[row, col + 1] if axis == 1 else scores[row + 1, col]
+        if not (math.isfinite(before) and math.isfinite(after)):
+            at_border = True
+            continue
+        offset, top = parabolic_vertex(before, peak, after)
+        height += top - peak
+        if axis == 1:
+            x += offset
+        else:
+            y += offset
+    return TemplateMatch(x - max_shift, y - max_shift, peak, at_border, height)

@@ -28,9 +28,16 @@ Statuses of a Motion that carries no estimate (``Motion.failed``):
   gray level, no segmented object, or no object whose outline is in the scene (see
   :class:`FeatureParams`); ``diagnostics["frame"]`` says which frame;
 - ``"no_rotation_estimate"``: no matched object subband has an orientable ellipse in both
-  frames;
+  frames (with the refinement ``search_without_estimates``, the default of ``t2fuzzy``, such a
+  frame is searched from rotation 0 instead);
 - ``"no_translation_estimate"``: the correlation is undefined (flat template or image) or its
-  peak is below ``min_ncc``.
+  peak is below ``min_ncc``;
+- ``"rotation_unconverged"`` (refinement ``fail_unconverged``): the rotation search ended
+  without a local maximum of the correlation; the estimate it stopped at is in
+  ``diagnostics["unconverged_motion"]``;
+- ``"translation_disagreement"`` (refinement ``max_shift_disagreement_px``): the shift of the
+  central template and the best shift of the whole overlap (``wide_shift``) differ by more than
+  that; the estimate is in ``diagnostics["disagreeing_motion"]``.
 
 Diagnostics of every Motion: ``n_clusters``, ``centres`` (gray levels), ``labels`` (H x W int32
 label image of the current frame; 0 = invalid or unlabelled, 1..C), ``object_angles`` (the
@@ -38,7 +45,9 @@ rotation estimates of stage 4, degrees), ``angle_sources`` (one row (reference l
 label, subband index) per estimate; subband names in ``subbands``), ``thresholds`` (lower,
 upper), ``inliers`` (mask over ``object_angles``), ``threshold_fallback`` (None or
 ``"median"``), ``rotation_by_thresholds`` (the rotation of stage 5, before any rotation
-search), ``ncc_peak``, ``ncc_at_border``, ``refine_passes`` (common-disc passes run; 0: the
+search), ``ncc_peak``, ``ncc_at_border``, with the rotation search ``search_converged`` and
+``wide_shift`` (the wide search's best (dx, dy), None when it did not run), ``refine_passes``
+(common-disc passes run; 0: the
 whole frames), ``ellipses`` (the current frame's fitted ellipses, on the common disc after a
 disc pass, as (cx, cy, half_major, half_minor, angle_deg) in image pixels, the angle of the
 major axis from +x toward +y), ``fcm_iterations`` and ``fcm_converged``. Keys not reached before
@@ -53,6 +62,7 @@ References:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -73,6 +83,7 @@ from stabilizer.t2_threshold import Type2FuzzyThreshold
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
     RotationSearch,
+    WideSearch,
     common_disc,
     half_resolution_template,
     translation_guess,
@@ -82,6 +93,8 @@ from stabilizer.wavelet_features import WaveletFeatures
 NO_STRUCTURE = "no_structure"
 NO_ROTATION = "no_rotation_estimate"
 NO_TRANSLATION = "no_translation_estimate"
+ROTATION_UNCONVERGED = "rotation_unconverged"
+TRANSLATION_DISAGREEMENT = "translation_disagreement"
 #: Half-width (pixels) of the translation search around a previous translation; a peak on its
 #: edge falls back to the whole range.
 NEAR_RADIUS_PX = 4
@@ -320,8 +333,14 @@ class T2FuzzyEstimator:
         self.refinements = refinements
         self.coarse_template = (half_resolution_template(smoothed, max_shift)
                                 if refinements.needs_coarse_template else None)
-        self.rotation_search = (RotationSearch(self.template, self.coarse_template, refinements)
+        wide = (WideSearch(smoothed, self._reference_valid, refinements.wide_search_px,
+                           refinements.wide_min_overlap)
+                if refinements.rotation_search and refinements.wide_search_px > 0 else None)
+        self.rotation_search = (RotationSearch(self.template, self.coarse_template, refinements,
+                                               wide)
                                 if refinements.rotation_search else None)
+        self.search_without_estimates = (refinements.rotation_search
+                                         and refinements.search_without_estimates)
 
         self._reference_analysis = self.analyse(reference)
 
@@ -415,7 +434,8 @@ class T2FuzzyEstimator:
             if frame.status is not None:
                 return Motion.failed(NO_STRUCTURE, frame="current", **diagnostics)
             motion = self._rotation_translation(reference.fits, frame.fits, reference, frame,
-                                                image, dict(diagnostics, refine_passes=0))
+                                                image, dict(diagnostics, refine_passes=0),
+                                                valid=current > 0)
         # Refinement: the rest of the common-disc passes, then (with the rotation search) up to
         # extra_disc_passes more while the searched and thresholded rotations disagree.
         extra = self.refinements.extra_disc_passes if self.rotation_search is not None else 0
@@ -452,26 +472,41 @@ class T2FuzzyEstimator:
     def _rotation_translation(self, ref_fits: EllipseFits, cur_fits: EllipseFits,
                               reference: FrameAnalysis, frame: FrameAnalysis,
                               image: np.ndarray, diagnostics: dict[str, Any],
-                              near: tuple[float, float] | None = None) -> Motion:
+                              near: tuple[float, float] | None = None,
+                              valid: np.ndarray | None = None) -> Motion:
         """Stages 4-6 from the ellipse fits of both frames; adds to ``diagnostics``.
 
         ``image``: the current frame smoothed for the correlation; ``near``: a previous
-        translation to search around (see :meth:`_translation`)."""
+        translation to search around (see :meth:`_translation`); ``valid``: the current
+        frame's measured pixels, for the wide search of the refinements."""
         angles, sources = self._angle_estimates(ref_fits, cur_fits, reference, frame)
         diagnostics.update(object_angles=angles, angle_sources=sources, subbands=self.subbands)
         robust = self.threshold(angles)
         diagnostics.update(thresholds=(robust.lower, robust.upper), inliers=robust.inliers,
                            threshold_fallback=robust.fallback,
                            rotation_by_thresholds=robust.value)
-        if angles.size == 0:
+        if angles.size == 0 and not self.search_without_estimates:
             return Motion.failed(NO_ROTATION, **diagnostics)
         if self.rotation_search is not None:  # refinement
-            angle, match = self.rotation_search(angles, robust.value, image, near)
+            start = robust.value if angles.size else 0.0
+            angle, match, converged = self.rotation_search(angles, start, image, near, valid)
+            diagnostics.update(search_converged=converged,
+                               wide_shift=self.rotation_search.wide_shift)
         else:
             angle, match = robust.value, self._translation(robust.value, image, near)
+            converged = True
         diagnostics.update(ncc_peak=match.peak, ncc_at_border=match.at_border)
         if not (match.peak >= self.min_ncc):
             return Motion.failed(NO_TRANSLATION, angle_deg=angle, **diagnostics)
+        if not converged and self.refinements.fail_unconverged:
+            return Motion.failed(ROTATION_UNCONVERGED,
+                                 unconverged_motion=(angle, match.x, match.y), **diagnostics)
+        wide_shift = diagnostics.get("wide_shift")
+        limit = self.refinements.max_shift_disagreement_px
+        if (wide_shift is not None and limit > 0
+                and math.hypot(match.x - wide_shift[0], match.y - wide_shift[1]) > limit):
+            return Motion.failed(TRANSLATION_DISAGREEMENT,
+                                 disagreeing_motion=(angle, match.x, match.y), **diagnostics)
         return Motion(angle, match.x, match.y, diagnostics=diagnostics)
 
     def _angle_estimates(self, ref_fits: EllipseFits, cur_fits: EllipseFits,

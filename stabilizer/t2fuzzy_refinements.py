@@ -2,8 +2,8 @@
 
 Kang, Zhang & Park (2009) take the rotation from the ellipse angles alone (stages 4-5) and then
 the translation from the FNCC of the rotation-compensated reference (stage 6), both on the whole
-frames. ``t2fuzzy`` adds two steps, described with their reasons in docs/method.md, section 8;
-``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them:
+frames. ``t2fuzzy`` adds the steps below, described with their reasons in docs/method.md,
+sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them:
 
 - Rotation search (:class:`RotationSearch`): the FNCC of stage 6 also scores rotations. The
   candidates are the thresholded rotation of stage 5, the means of the largest groups of angle
@@ -16,19 +16,46 @@ frames. ``t2fuzzy`` adds two steps, described with their reasons in docs/method.
   border in one frame only is compared with the same part of it in the other frame. The first
   estimate is a translation-only guess (:func:`translation_guess`), each further pass starts
   from the previous pass's estimate.
+- Wide masked search (:class:`WideSearch`): the rotation search scores its candidates first by
+  the masked FNCC of the whole overlap of the two frames at half resolution (Padfield 2012,
+  :class:`~stabilizer.fncc.MaskedCorrelation`), over shifts up to ``wide_search_px``: the
+  central template of stage 6 sees neither the structures near the border nor shifts beyond its
+  margin. Its shift is where the finer search starts; a shift beyond the central template's
+  reach is climbed over rotations on the whole overlap instead.
+- Search without ellipse estimates (``search_without_estimates``): a frame whose ellipses give
+  no rotation estimate is searched from rotation 0 rather than failed.
+- Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
+  (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
+  maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
+  whose shift disagrees with the wide search's is ``"translation_disagreement"``
+  (``max_shift_disagreement_px``).
 
-The half-resolution template that both use is :func:`half_resolution_template`.
+Why each step, and what it changes on walking frames: docs/method.md, sections 8 and 12.
+The half-resolution template that the refinements use is :func:`half_resolution_template`.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from stabilizer.fncc import RotatedTemplate, TemplateMatch, parabolic_vertex
+from stabilizer.fncc import (
+    MaskedCorrelation,
+    MaskedSpectra,
+    RotatedTemplate,
+    TemplateMatch,
+    parabolic_vertex,
+)
 from stabilizer.motion import Motion, image_centre, motion_matrix
+
+#: Half-width (pixels) of the full-resolution search around a shift found at half resolution.
+FINE_RADIUS_PX = 4
+#: The margins of the large templates (:meth:`RotationSearch.refine_on_large_template`) are
+#: multiples of this many pixels, so that a few templates serve all frames of a reference.
+LARGE_MARGIN_STEP_PX = 4
 
 
 @dataclass(frozen=True)
@@ -54,6 +81,37 @@ class Refinements:
             passes, run while the searched rotation and the thresholded one differ by more than
             ``extra_pass_trigger_deg``; default 0.
         extra_pass_trigger_deg: see ``extra_disc_passes``; default 2 degrees.
+        wide_search_px: with ``rotation_search``, the candidates are first scored by the masked
+            FNCC of the whole overlap at half resolution over shifts up to this many pixels
+            (:class:`WideSearch`), whose shift starts the finer search; 0: off (the central
+            template alone, within ``TranslationParams.max_shift_px``). Default 72, half the
+            SR4000's height: shifts that leave a quarter of the frame or more.
+        wide_min_overlap: shifts whose overlap keeps less than this share of the reference's
+            valid pixels are not scored by the wide search (a small overlap correlates well by
+            chance); default 0.3.
+        search_without_estimates: with ``rotation_search``, a frame whose ellipses give no
+            rotation estimate is searched from rotation 0 instead of getting the status
+            ``"no_rotation_estimate"``; default True.
+        max_rotation_deg: with ``rotation_search``, the largest rotation searched: candidates
+            beyond it are dropped and the climb does not pass it, as ``max_shift_px`` bounds
+            the shift. Default 20 degrees (the paper's walking robot turns its camera by up to
+            about 12 degrees; the peers' start searches span +-15).
+        fail_unconverged: with ``rotation_search``, a climb that ends without a local maximum
+            of the correlation (after ``search_max_steps`` steps, or at ``max_rotation_deg``)
+            gives the status ``"rotation_unconverged"`` rather than an estimate: the peak it
+            was climbing to was not found. Default True.
+        max_shift_disagreement_px: with the wide search, an estimate whose shift lies farther
+            than this from the wide search's best shift gives the status
+            ``"translation_disagreement"``: the central template and the whole overlap point to
+            different peaks, and one of them is wrong. 0: no such test. Default 8 pixels
+            (docs/method.md, section 12, measures the choice).
+        large_template_border_px: with ``rotation_search``, after the climb the rotation is
+            climbed once more (at half resolution) and the shift measured again (at full
+            resolution) on the largest central template the found shift allows, the reference
+            ``max(|dx|, |dy|)`` plus this many pixels in from every side
+            (:meth:`RotationSearch.refine_on_large_template`): its pixels lie farther from the
+            centre of rotation than those of the ``max_shift_px`` template, and fix the
+            rotation better. 0: off. Default 6.
     """
 
     rotation_search: bool = True
@@ -63,19 +121,35 @@ class Refinements:
     common_disc_passes: int = 0
     extra_disc_passes: int = 0
     extra_pass_trigger_deg: float = 2.0
+    wide_search_px: int = 72
+    wide_min_overlap: float = 0.3
+    search_without_estimates: bool = True
+    max_rotation_deg: float = 20.0
+    fail_unconverged: bool = True
+    max_shift_disagreement_px: float = 8.0
+    large_template_border_px: int = 6
 
     def __post_init__(self):
         if not self.search_step_deg > 0:
             raise ValueError(f"search_step_deg must be > 0; got {self.search_step_deg}")
         for name in ("search_max_steps", "search_candidates", "common_disc_passes",
-                     "extra_disc_passes"):
+                     "extra_disc_passes", "wide_search_px", "large_template_border_px"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0; got {getattr(self, name)}")
+        if self.max_shift_disagreement_px < 0:
+            raise ValueError(f"max_shift_disagreement_px must be >= 0; "
+                             f"got {self.max_shift_disagreement_px}")
+        if not self.max_rotation_deg > 0:
+            raise ValueError(f"max_rotation_deg must be > 0; got {self.max_rotation_deg}")
+        if not 0.0 < self.wide_min_overlap <= 1.0:
+            raise ValueError(f"wide_min_overlap must be in (0, 1]; got {self.wide_min_overlap}")
 
     @classmethod
     def off(cls) -> Refinements:
         """No refinement: the paper's pipeline as written (the ``t2fuzzy_paper`` method)."""
-        return cls(rotation_search=False, common_disc_passes=0, extra_disc_passes=0)
+        return cls(rotation_search=False, common_disc_passes=0, extra_disc_passes=0,
+                   wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
+                   max_shift_disagreement_px=0.0, large_template_border_px=0)
 
     @property
     def needs_coarse_template(self) -> bool:
@@ -133,6 +207,59 @@ def common_disc(motion: Motion, shape: tuple[int, int]) -> tuple[np.ndarray, np.
     return masks[0], masks[1]
 
 
+class WideSearch:
+    """Masked FNCC of the whole overlap of the rotated reference and the current frame, at half
+    resolution (:class:`~stabilizer.fncc.MaskedCorrelation`, Padfield 2012).
+
+    The central template of stage 6 is the reference ``max_shift_px`` in from every side: on
+    walking frames the structures that pin the shift down often lie outside it (the pillars at
+    the sides of a hall leave only the horizon in it, which fixes y but not x), and shifts beyond
+    its margin cannot be found at all. The masked correlation compares every pixel both frames
+    measure, at every shift that keeps ``min_overlap`` of the reference.
+
+    Args:
+        smoothed_reference: the reference as stage 6 correlates it (float32, smoothed).
+        valid: the reference's measured pixels (bool).
+        max_shift: largest shift searched along each axis, full-resolution pixels.
+        min_overlap: see :class:`~stabilizer.fncc.MaskedCorrelation`.
+    """
+
+    def __init__(self, smoothed_reference: np.ndarray, valid: np.ndarray, max_shift: int,
+                 min_overlap: float):
+        self.reference = cv2.pyrDown(smoothed_reference)
+        self.valid = half_resolution_valid(valid).view(np.uint8)
+        centre_x, centre_y = image_centre(smoothed_reference.shape)
+        self.centre = (centre_x / 2.0, centre_y / 2.0)
+        # No shift beyond the frame can keep an overlap.
+        half_shift = min(max(int(max_shift) // 2, 1), min(self.reference.shape) - 1)
+        self.correlation = MaskedCorrelation(self.reference.shape, half_shift, min_overlap)
+
+    def spectra(self, half_image: np.ndarray, half_valid: np.ndarray) -> MaskedSpectra:
+        """The current frame's share of the correlation, once per frame (half resolution)."""
+        return self.correlation.spectra(half_image, half_valid, moving=True)
+
+    def match(self, current: MaskedSpectra, angle_deg: float,
+              near: tuple[float, float] | None = None) -> TemplateMatch:
+        """Shift (dx, dy), full-resolution pixels, of the current frame for ``angle_deg``;
+        ``near`` is ignored (every shift is scored; the signature is
+        :meth:`~stabilizer.fncc.RotatedTemplate.match`'s, so that the climb takes either)."""
+        height, width = self.reference.shape
+        rotation = cv2.getRotationMatrix2D(self.centre, float(angle_deg), 1.0)
+        rotated = cv2.warpAffine(self.reference, rotation, (width, height),
+                                 flags=cv2.INTER_LINEAR)
+        valid = cv2.warpAffine(self.valid, rotation, (width, height), flags=cv2.INTER_NEAREST)
+        found = self.correlation.match(
+            self.correlation.spectra(rotated, valid.view(bool), moving=False), current)
+        return TemplateMatch(2.0 * found.x, 2.0 * found.y, found.peak, found.at_border,
+                             found.height)
+
+
+def half_resolution_valid(valid: np.ndarray) -> np.ndarray:
+    """Half-resolution validity (bool) of a ``cv2.pyrDown`` image: a pixel whose 5 x 5 kernel
+    saw an unmeasured pixel blends in a 0 and is no measurement."""
+    return cv2.pyrDown(valid.astype(np.float32)) > 0.999
+
+
 class RotationSearch:
     """The rotation that maximises the FNCC peak, searched around the ellipse estimates.
 
@@ -140,51 +267,126 @@ class RotationSearch:
         template: the reference's FNCC template (stage 6) at full resolution.
         coarse_template: the same at half resolution (:func:`half_resolution_template`).
         refinements: ``search_step_deg``, ``search_max_steps`` and ``search_candidates``.
+        wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
     """
 
     def __init__(self, template: RotatedTemplate, coarse_template: RotatedTemplate,
-                 refinements: Refinements):
+                 refinements: Refinements, wide: WideSearch | None = None):
         self.template = template
         self.coarse_template = coarse_template
         self.step = float(refinements.search_step_deg)
         self.max_steps = int(refinements.search_max_steps)
         self.n_candidates = int(refinements.search_candidates)
+        self.max_rotation = float(refinements.max_rotation_deg)
+        self.large_border = int(refinements.large_template_border_px)
+        # Large templates by margin (full-resolution pixels), made once per reference.
+        self._large_templates: dict[tuple[int, bool], RotatedTemplate] = {}
+        self.wide = wide
+        #: The wide search's best (dx, dy) in the last call, None if it did not run.
+        self.wide_shift: tuple[float, float] | None = None
 
     def __call__(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
-                 near: tuple[float, float] | None = None) -> tuple[float, TemplateMatch]:
-        """The searched rotation and the FNCC match at it.
+                 near: tuple[float, float] | None = None,
+                 valid: np.ndarray | None = None) -> tuple[float, TemplateMatch, bool]:
+        """The searched rotation, the FNCC match at it, and whether the climb ended at a local
+        maximum of the correlation within ``max_rotation_deg``.
 
         Args:
             angles: the rotation estimates of stage 4, degrees.
             first_guess: the thresholded rotation of stage 5.
             image: the current frame, smoothed as the template was.
             near: a previous translation to search around (the whole range if None).
+            valid: the current frame's measured pixels (bool), for the wide search; without
+                it, or with ``near``, the wide search is not run.
         """
         half = cv2.pyrDown(image)
-        candidates = [first_guess]
+        candidates = []
         # The identity too: when every group of estimates is wrong, no rotation is the
         # likeliest alternative for a camera that stays roughly upright.
-        for mean in self._group_means(angles) + [0.0]:
-            if min(abs(mean - c) for c in candidates) > self.step:
+        for mean in [first_guess] + self._group_means(angles) + [0.0]:
+            if abs(mean) <= self.max_rotation and all(abs(mean - c) > self.step
+                                                      for c in candidates):
                 candidates.append(mean)
-        coarse = [self._coarse_match(half, candidates[0], near)]
-        if near is None and np.isfinite(coarse[0].peak):
-            # The shift hardly depends on the rotation about the image centre: search the
-            # other candidates near the first one's.
-            near = (2.0 * coarse[0].x, 2.0 * coarse[0].y)
-        coarse += [self._coarse_match(half, angle, near) for angle in candidates[1:]]
+        self.wide_shift = None
+        if self.wide is not None and near is None and valid is not None:
+            spectra = self.wide.spectra(half, half_resolution_valid(valid))
+            wide = [self.wide.match(spectra, angle) for angle in candidates]
+            heights = [m.height if np.isfinite(m.height) else -np.inf for m in wide]
+            best = int(np.argmax(heights))
+            self.wide_shift = (wide[best].x, wide[best].y)
+            if not np.isfinite(heights[best]):
+                return candidates[best], wide[best], False
+            reach = self.template.margin - FINE_RADIUS_PX
+            if max(abs(wide[best].x), abs(wide[best].y)) > reach:
+                # Beyond the central template's reach: climb on the whole overlap.
+                return self._climb(self.wide, spectra, candidates[best], wide[best])
+            # Every candidate near the wide search's shift, and only there.
+            coarse = [self.coarse_template.match(half, angle, (wide[best].x / 2.0,
+                                                                wide[best].y / 2.0))
+                      for angle in candidates]
+        else:
+            spectra = None
+            coarse = [self._coarse_match(half, candidates[0], near)]
+            if near is None and np.isfinite(coarse[0].peak):
+                # The shift hardly depends on the rotation about the image centre: search the
+                # other candidates near the first one's.
+                near = (2.0 * coarse[0].x, 2.0 * coarse[0].y)
+            coarse += [self._coarse_match(half, angle, near) for angle in candidates[1:]]
         heights = [m.height if np.isfinite(m.height) else -np.inf for m in coarse]
         best = int(np.argmax(heights))
         angle = candidates[best]
         if not np.isfinite(heights[best]):
-            return angle, self.template.match(image, angle)
+            return angle, (self.wide.match(spectra, angle) if spectra is not None
+                           else self.template.match(image, angle)), False
         # Climb at half resolution first (a fraction of the cost), then finish at full.
-        angle, top = self._climb(self.coarse_template, half, angle, coarse[best])
+        angle, top, converged = self._climb(self.coarse_template, half, angle, coarse[best])
         near = (2.0 * top.x, 2.0 * top.y)
         centre = self.template.match(image, angle, near)
-        if centre.at_border:  # the coarse shift was off: search the whole range once
-            centre = self.template.match(image, angle)
-        return self._climb(self.template, image, angle, centre)
+        if centre.at_border:  # the coarse shift was off
+            if spectra is not None:  # the shift of the whole overlap at this rotation
+                return angle, self.wide.match(spectra, angle), converged
+            centre = self.template.match(image, angle)  # search the whole range once
+        angle, match, fine_converged = self._climb(self.template, image, angle, centre)
+        if self.large_border > 0:
+            angle, match = self.refine_on_large_template(half, image, angle, match)
+        return angle, match, converged and fine_converged
+
+    def refine_on_large_template(self, half: np.ndarray, image: np.ndarray, angle: float,
+                                 match: TemplateMatch) -> tuple[float, TemplateMatch]:
+        """The rotation climbed again at half resolution, and the shift at it, on the largest
+        central template that stays in the current frame near the shift of ``match``.
+
+        The ``max_shift_px`` template must fit every shift of the search range; once the shift
+        is known, a template ``max(|dx|, |dy|)`` + ``large_template_border_px`` in from every
+        side fits it, and its pixels, farther from the centre of rotation, move more under a
+        rotation. The climb's result is kept only if it ends at a local maximum within two
+        steps of ``angle``; the shift is the large template's at full resolution (the
+        ``max_shift_px`` template's if the large one's peak is on the edge of its search).
+        """
+        # Margins in steps of LARGE_MARGIN_STEP_PX: a few templates serve a reference's frames.
+        reach = LARGE_MARGIN_STEP_PX * math.ceil((max(abs(match.x), abs(match.y))
+                                                  + self.large_border) / LARGE_MARGIN_STEP_PX)
+        if not reach < self.template.margin:  # no larger template fits
+            return angle, match
+        half_template = self._large_template(reach // 2, True)
+        start = half_template.match(half, angle, (match.x / 2.0, match.y / 2.0))
+        climbed, _, converged = self._climb(half_template, half, angle, start)
+        if not (converged and abs(climbed - angle) < 2.0 * self.step):
+            return angle, match
+        near = (match.x, match.y)
+        for template in (self._large_template(reach, False), self.template):
+            found = template.match(image, climbed, near)
+            if not found.at_border:
+                return climbed, found
+        return angle, match
+
+    def _large_template(self, margin: int, half: bool) -> RotatedTemplate:
+        """The central template ``margin`` pixels (of its resolution) in from every side."""
+        key = (int(margin), half)
+        if key not in self._large_templates:
+            like = self.coarse_template if half else self.template
+            self._large_templates[key] = like.with_margin(int(margin))
+        return self._large_templates[key]
 
     def _coarse_match(self, half: np.ndarray, angle: float,
                       near: tuple[float, float] | None) -> TemplateMatch:
@@ -197,19 +399,25 @@ class RotationSearch:
         return self.coarse_template.match(half, angle)
 
     def _climb(self, template: RotatedTemplate, image: np.ndarray, angle: float,
-               centre: TemplateMatch) -> tuple[float, TemplateMatch]:
+               centre: TemplateMatch) -> tuple[float, TemplateMatch, bool]:
         """Hill-climb the correlation peak over rotation; parabolic vertex of the last three.
 
         The shift at the vertex is interpolated on the same parabola from the three matches
-        (it changes smoothly with the rotation), which saves one more correlation.
+        (it changes smoothly with the rotation), which saves one more correlation. The flag
+        says whether the climb ended at a local maximum (not after ``search_max_steps`` steps
+        or at ``max_rotation_deg``).
         """
         near = (centre.x, centre.y)
         step = self.step
         below = template.match(image, angle - step, near)
         above = template.match(image, angle + step, near)
+        converged = False
         for _ in range(self.max_steps):
             if centre.height >= below.height and centre.height >= above.height:
+                converged = True
                 break
+            if abs(angle + (step if above.height > below.height else -step)) > self.max_rotation:
+                break  # the next step would leave the searched range
             if above.height > below.height:
                 angle, below, centre = angle + step, centre, above
                 near = (centre.x, centre.y)  # the shift drifts with the rotation
@@ -224,8 +432,10 @@ class RotationSearch:
         trio = (below, centre, above)
         x = sum(w * m.x for w, m in zip(weights, trio))
         y = sum(w * m.y for w, m in zip(weights, trio))
+        if not converged:  # the maximum of the last three need not be the middle one
+            converged = centre.height >= below.height and centre.height >= above.height
         return angle + offset * step, TemplateMatch(x, y, centre.peak, centre.at_border,
-                                                    centre.height)
+                                                    centre.height), converged
 
     def _group_means(self, angles: np.ndarray) -> list[float]:
         """Means of the largest groups of the sorted angles (groups split at gaps wider than two

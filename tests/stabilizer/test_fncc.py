@@ -4,7 +4,13 @@ import cv2
 import numpy as np
 import pytest
 
-from stabilizer.fncc import RotatedTemplate, match_template, parabolic_vertex
+from stabilizer.fncc import (
+    MaskedCorrelation,
+    RotatedTemplate,
+    match_template,
+    parabolic_vertex,
+    surface_peak,
+)
 from stabilizer.motion import Motion, apply_motion
 
 
@@ -95,3 +101,91 @@ def test_half_resolution_template_with_the_full_frame_centre():
     match = coarse.match(cv2.pyrDown(current), motion.angle_deg)
     assert (2 * match.x, 2 * match.y) == (pytest.approx(motion.dx, abs=0.5),
                                           pytest.approx(motion.dy, abs=0.5))
+
+
+def _masked_ncc_direct(fixed, fixed_valid, moving, moving_valid, dx, dy):
+    """Eq. (7) on the pixels both frames measure, fixed(x) against moving(x + d), by loops."""
+    height, width = fixed.shape
+    a, b = [], []
+    for y in range(height):
+        for x in range(width):
+            u, v = x + dx, y + dy
+            if 0 <= u < width and 0 <= v < height and fixed_valid[y, x] and moving_valid[v, u]:
+                a.append(fixed[y, x])
+                b.append(moving[v, u])
+    a, b = np.array(a) - np.mean(a), np.array(b) - np.mean(b)
+    return float(a @ b / np.sqrt((a @ a) * (b @ b))), len(a)
+
+
+def test_masked_correlation_is_eq_7_on_the_pixels_both_frames_measure():
+    rng = np.random.default_rng(6)
+    fixed, moving = _textured((20, 24), seed=6), _textured((20, 24), seed=7)
+    fixed_valid, moving_valid = rng.random((20, 24)) > 0.2, rng.random((20, 24)) > 0.2
+    correlation = MaskedCorrelation((20, 24), 6, 0.3)
+    scores = correlation.surface(correlation.spectra(fixed, fixed_valid, False),
+                                 correlation.spectra(moving, moving_valid, True))
+    for dy in range(-6, 7, 3):
+        for dx in range(-6, 7, 2):
+            expected, overlap = _masked_ncc_direct(fixed, fixed_valid, moving, moving_valid,
+                                                   dx, dy)
+            assert overlap >= 0.3 * fixed_valid.sum()
+            assert scores[dy + 6, dx + 6] == pytest.approx(expected, abs=1e-4)  # float32 DFTs
+
+
+def test_masked_correlation_finds_shifts_the_central_template_cannot():
+    image = _textured(seed=8)
+    motion = Motion(0.0, 57.3, -31.6)  # beyond a 44-px margin along x
+    current = apply_motion(image, motion, cv2.INTER_LINEAR)
+    # The edge of the moved area blends the image with the 0 outside it: not a measurement.
+    current_valid = cv2.erode(apply_motion(np.ones(image.shape, np.uint8), motion),
+                              np.ones((3, 3), np.uint8), borderValue=1) > 0
+    correlation = MaskedCorrelation(image.shape, 72, 0.3)
+    match = correlation.match(correlation.spectra(image, np.ones(image.shape, bool), False),
+                              correlation.spectra(current, current_valid, True))
+    assert (match.x, match.y) == (pytest.approx(57.3, abs=0.15), pytest.approx(-31.6, abs=0.15))
+    assert match.peak > 0.99 and not match.at_border
+
+
+def test_small_overlaps_and_flat_frames_are_not_scored():
+    image = _textured(seed=9)
+    correlation = MaskedCorrelation(image.shape, 100, 0.5)
+    valid = np.ones(image.shape, bool)
+    scores = correlation.surface(correlation.spectra(image, valid, False),
+                                 correlation.spectra(image, valid, True))
+    # A shift of 100 px along x leaves 76 / 176 of the columns: less than half.
+    assert np.isneginf(scores[100, 200]) and np.isfinite(scores[100, 100])
+    flat = np.full(image.shape, 9.0, np.float32)
+    flat_scores = correlation.surface(correlation.spectra(flat, valid, False),
+                                      correlation.spectra(image, valid, True))
+    assert np.all(np.isneginf(flat_scores))
+    assert np.isnan(correlation.match(correlation.spectra(flat, valid, False),
+                                      correlation.spectra(image, valid, True)).peak)
+
+
+def test_surface_peak_refines_inside_and_flags_the_edge():
+    rows, columns = np.mgrid[-3:4, -3:4]
+    inside = -((columns - 1.3) ** 2) - (rows + 0.4) ** 2
+    match = surface_peak(inside, 3)
+    assert (match.x, match.y) == (pytest.approx(1.3), pytest.approx(-0.4))
+    assert not match.at_border
+    edge = -((columns - 5.0) ** 2) - rows ** 2
+    assert surface_peak(edge, 3).at_border and surface_peak(edge, 3).x == 3.0
+
+
+@pytest.mark.parametrize("args", [((144, 176), 0, 0.3), ((144, 176), 144, 0.3),
+                                  ((144, 176), 40, 0.0), ((144, 176), 40, 1.5)])
+def test_bad_masked_correlation_parameters_are_value_errors(args):
+    with pytest.raises(ValueError):
+        MaskedCorrelation(*args)
+
+
+def test_a_template_with_another_margin_matches_alike():
+    reference = _textured(seed=10)
+    motion = Motion(6.0, -9.4, 5.2)
+    current = apply_motion(reference, motion, cv2.INTER_LINEAR)
+    small = RotatedTemplate(reference, margin=44)
+    large = small.with_margin(12)
+    assert large.size == (176 - 24, 144 - 24)
+    found = large.match(current, motion.angle_deg, (motion.dx, motion.dy))
+    assert (found.x, found.y) == (pytest.approx(motion.dx, abs=0.1),
+                                  pytest.approx(motion.dy, abs=0.1))

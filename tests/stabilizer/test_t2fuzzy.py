@@ -9,6 +9,8 @@ from stabilizer.motion import Motion, apply_motion, compensate
 from stabilizer.t2fuzzy import (
     NO_ROTATION,
     NO_TRANSLATION,
+    ROTATION_UNCONVERGED,
+    TRANSLATION_DISAGREEMENT,
     FeatureParams,
     T2FuzzyEstimator,
     TranslationParams,
@@ -196,10 +198,19 @@ def test_same_input_gives_identical_results():
 
 
 def test_round_objects_only_give_no_rotation_estimate():
+    """No ellipse orients a disc: the paper's stages have no rotation estimate; ``t2fuzzy``
+    searches from rotation 0 (``search_without_estimates``), where the frames line up."""
     image = np.full((144, 144), 40, np.uint8)
     cv2.circle(image, (72, 72), 30, 160, -1)
-    motion = stabilizer.estimate(image, apply_motion(image, Motion(0.0, 3.0, 2.0)))
-    assert motion.status == NO_ROTATION and np.isnan(motion.dx)
+    current = apply_motion(image, Motion(0.0, 3.0, 2.0))
+    paper = stabilizer.estimate(image, current, method="t2fuzzy_paper")
+    assert paper.status == NO_ROTATION and np.isnan(paper.dx)
+    searched = stabilizer.estimate(image, current)
+    assert searched.ok and searched.diagnostics["object_angles"].size == 0
+    np.testing.assert_allclose(searched.as_tuple(), (0.0, 3.0, 2.0), atol=0.5)
+    unsearched = stabilizer.estimate(image, current,
+                                     refinements=Refinements(search_without_estimates=False))
+    assert unsearched.status == NO_ROTATION
 
 
 def test_unmatched_correlation_gives_no_translation_estimate():
@@ -228,7 +239,8 @@ def test_odd_frames_never_crash(frame):
     for current in (frame, apply_motion(frame, Motion(7.0, 3.0, -2.0)), np.zeros_like(frame)):
         search = TranslationParams(max_shift_px=min(44, frame.shape[0] // 4))
         motion = stabilizer.estimate(frame, current, translation=search)
-        assert motion.ok or motion.status in ("no_structure", NO_ROTATION, NO_TRANSLATION)
+        assert motion.ok or motion.status in ("no_structure", NO_ROTATION, NO_TRANSLATION,
+                                              ROTATION_UNCONVERGED, TRANSLATION_DISAGREEMENT)
         assert motion.ok == np.isfinite(motion.angle_deg)
 
 
@@ -244,3 +256,34 @@ def test_too_small_a_frame_for_the_search_range_is_a_value_error():
     T2FuzzyEstimator(np.zeros((96, 96), np.uint8))
     with pytest.raises(ValueError, match="max_shift_px"):
         T2FuzzyEstimator(np.zeros((95, 120), np.uint8))
+
+
+def test_estimates_the_central_template_and_the_whole_overlap_disagree_on_are_failures():
+    """The wide search's shift is in the diagnostics; an estimate farther from it than
+    ``max_shift_disagreement_px`` is a failure that keeps the estimate for inspection."""
+    reference = _scene(7)
+    current = apply_motion(reference, Motion(4.0, 9.0, -6.0))
+    agreed = stabilizer.estimate(reference, current, verification=None)
+    assert agreed.ok
+    np.testing.assert_allclose(agreed.diagnostics["wide_shift"], (9.0, -6.0), atol=2.0)
+    strict = stabilizer.estimate(reference, current, verification=None,
+                                 refinements=Refinements(max_shift_disagreement_px=1e-6))
+    assert strict.status == TRANSLATION_DISAGREEMENT
+    np.testing.assert_allclose(strict.diagnostics["disagreeing_motion"], agreed.as_tuple())
+    paper = stabilizer.estimate(reference, current, method="t2fuzzy_paper", verification=None)
+    assert "wide_shift" not in paper.diagnostics and "search_converged" not in paper.diagnostics
+
+
+def test_an_unconverged_rotation_search_is_a_failure():
+    """With no climbing step, the search stops where it starts: here at the thresholded
+    rotation of stage 5 (3.5 deg for a 9 deg motion), which is no peak of the correlation."""
+    reference = _scene(8)
+    current = apply_motion(reference, Motion(9.0, 3.0, 2.0))
+    cut_short = Refinements(search_max_steps=0, search_candidates=0)
+    motion = stabilizer.estimate(reference, current, verification=None, refinements=cut_short)
+    assert motion.status == ROTATION_UNCONVERGED
+    assert not motion.diagnostics["search_converged"]
+    assert abs(motion.diagnostics["unconverged_motion"][0] - 9.0) > 2.0
+    climbed = stabilizer.estimate(reference, current, verification=None)
+    assert climbed.ok and climbed.diagnostics["search_converged"]
+    assert climbed.angle_deg == pytest.approx(9.0, abs=0.5)

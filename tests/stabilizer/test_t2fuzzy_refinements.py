@@ -9,8 +9,10 @@ from stabilizer.motion import Motion, apply_motion
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
     RotationSearch,
+    WideSearch,
     common_disc,
     half_resolution_template,
+    half_resolution_valid,
     translation_guess,
 )
 
@@ -55,18 +57,111 @@ def test_rotation_search_climbs_to_the_correlation_peak(start):
     search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
                             Refinements())
     truth = Motion(7.0, 5.0, -3.0)
-    angle, match = search(np.array([start]), start, _smoothed(apply_motion(reference, truth)))
+    angle, match, converged = search(np.array([start]), start,
+                                     _smoothed(apply_motion(reference, truth)))
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.5)
+    assert converged
+
+
+def _wide_search_setup(truth):
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    wide = WideSearch(smoothed, reference > 0, 72, 0.3)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(), wide)
+    current = apply_motion(reference, truth)
+    return search, _smoothed(current), current > 0
+
+
+@pytest.mark.parametrize("truth", [Motion(5.0, 12.0, -6.0), Motion(-8.0, 58.0, 20.0),
+                                   Motion(3.0, -20.0, -52.0)])
+def test_wide_search_finds_shifts_beyond_the_central_template(truth):
+    """The central template reaches +-44 px; the masked search of the whole overlap finds
+    the shift beyond it too (the last two), and a nearby one to start the fine search."""
+    search, image, valid = _wide_search_setup(truth)
+    angle, match, converged = search(np.array([truth.angle_deg]), truth.angle_deg, image,
+                                      valid=valid)
+    np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=1.0)
+    assert converged
+    # Without the wide search the central template cannot reach the shift.
+    if max(abs(truth.dx), abs(truth.dy)) > 44:
+        _, alone, _ = search(np.array([truth.angle_deg]), truth.angle_deg, image)
+        assert max(abs(alone.x - truth.dx), abs(alone.y - truth.dy)) > 5.0
+
+
+def test_wide_search_scores_the_whole_overlap():
+    """Structures near the border, outside the central template, fix the shift: a scene whose
+    central region is a horizontal edge only (no x information) with two pillars at the sides."""
+    reference = np.full((144, 176), 40, np.uint8)
+    reference[72:] = 90  # a horizon across the whole frame: the centre fixes y only
+    cv2.rectangle(reference, (8, 10), (22, 130), 200, -1)
+    cv2.rectangle(reference, (150, 10), (166, 130), 200, -1)
+    smoothed = _smoothed(reference)
+    truth = Motion(0.0, -9.0, 2.0)
+    current = apply_motion(reference, truth)
+    wide = WideSearch(smoothed, reference > 0, 72, 0.3)
+    spectra = wide.spectra(cv2.pyrDown(_smoothed(current)), half_resolution_valid(current > 0))
+    match = wide.match(spectra, 0.0)
+    np.testing.assert_allclose((match.x, match.y), (truth.dx, truth.dy), atol=1.0)
+    central = RotatedTemplate(smoothed, 44).match(_smoothed(current), 0.0)
+    assert abs(central.x - truth.dx) > 3.0  # the central template alone slides along the edge
+
+
+def test_a_climb_that_finds_no_peak_is_unconverged():
+    """A climb cut off by ``search_max_steps`` (here 1 step of 1.5 deg at each resolution, from
+    0 towards a 7 deg rotation) reports that it found no local maximum."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(search_max_steps=1, search_candidates=0))
+    truth = Motion(7.0, 5.0, -3.0)
+    angle, _, converged = search(np.empty(0), 0.0, _smoothed(apply_motion(reference, truth)))
+    # At most one step and a half-step vertex offset at each of the two resolutions.
+    assert not converged and abs(angle) <= 2 * 1.5 * 1.5 + 1e-9
+
+
+def test_the_search_stays_within_the_rotation_range():
+    """Candidates beyond ``max_rotation_deg`` are not scored, and the climb stops at it."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(max_rotation_deg=4.0))
+    truth = Motion(9.0, 0.0, 0.0)
+    angle, _, converged = search(np.array([9.0]), 9.0, _smoothed(apply_motion(reference, truth)))
+    assert abs(angle) <= 4.0 + 1.5 and not converged
 
 
 def test_off_is_the_paper_pipeline():
     off = Refinements.off()
     assert not off.rotation_search and off.common_disc_passes == off.extra_disc_passes == 0
+    assert off.wide_search_px == 0 and not off.search_without_estimates
+    assert not off.fail_unconverged
     assert not off.needs_coarse_template and Refinements().needs_coarse_template
 
 
 @pytest.mark.parametrize("params", [{"search_step_deg": 0.0}, {"search_max_steps": -1},
-                                    {"common_disc_passes": -1}, {"extra_disc_passes": -1}])
+                                    {"common_disc_passes": -1}, {"extra_disc_passes": -1},
+                                    {"wide_search_px": -1}, {"wide_min_overlap": 0.0},
+                                    {"max_rotation_deg": 0.0}])
 def test_bad_refinement_parameters_are_value_errors(params):
     with pytest.raises(ValueError, match=next(iter(params))):
         Refinements(**params)
+
+
+def test_the_large_template_refines_the_rotation_and_the_shift():
+    """From an estimate 1 deg off, the climb on the large template ends at the true rotation,
+    and the shift is measured again there."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements())
+    truth = Motion(5.0, 6.0, -4.0)
+    image = _smoothed(apply_motion(reference, truth))
+    start = search.template.match(image, 6.0, (truth.dx, truth.dy))
+    angle, match = search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, start)
+    np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.4)
+    # A shift that leaves no template larger than the search's own: nothing changes.
+    far = search.template.match(image, 6.0, (40.0, 0.0))
+    far = type(far)(40.0, far.y, far.peak, far.at_border, far.height)
+    assert search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, far) == (6.0, far)
+    assert Refinements.off().large_template_border_px == 0
