@@ -23,6 +23,9 @@ omega = 5.5 s^-1 after a 1 N s push, not at all for the errors of nominal walkin
 the foot by the extrapolated error made it fall more often than not adjusting at all
 (docs/walking.md, "Push recovery"). The growth rate is therefore a parameter, 0 by default:
 the foot moves by the error measured now, updated every control period while it grows.
+
+The same departure, at any moment of a step but its last ``freeze_s``, marks a disturbance
+(``disturbed_at_s``), which turns on the controller's CoM feedback and slip following.
 """
 
 from __future__ import annotations
@@ -95,6 +98,11 @@ class CapturePointStepper:
         self._offset = np.zeros(2)
         #: Number of steps whose adjustment has started so far.
         self.adjusted_steps = 0
+        #: When the capture point first departed from its nominal pattern by ``trigger_m``,
+        #: double support included but not in the last ``freeze_s`` of a step (where the
+        #: nominal departure of turning in place comes close to it): a disturbance such as a
+        #: push; None until then.
+        self.disturbed_at_s: float | None = None
 
     def recovering(self, now_s: float) -> bool:
         """Whether the robot is in the steps that follow an adjusted one."""
@@ -112,7 +120,7 @@ class CapturePointStepper:
         return self.measured_capture_point(data) - data.site_xpos[self._soles[side], :2]
 
     def update(self, now_s: float, data: mujoco.MjData, planner: FootstepPlanner) -> None:
-        """Learn the nominal pattern, or adjust the step under way."""
+        """Learn the nominal pattern, detect a disturbance, or adjust the step under way."""
         step = planner.current_step
         # The first step from standing and the steps that stop have their own pattern: neither
         # learnt nor adjusted.
@@ -126,6 +134,9 @@ class CapturePointStepper:
         remaining_s = step.end_s - now_s
         key = (step.support_side, min(self._bins - 1, max(0, int(remaining_s / self._dt))))
         residual = local - self._nominal[key]
+        if (self.disturbed_at_s is None and self._seen[key] >= self.min_seen
+                and remaining_s >= self.freeze_s and math.hypot(*residual) >= self.trigger_m):
+            self.disturbed_at_s = now_s
         if self._adjusting_step_start_s != step.start_s:
             single_support = now_s >= step.start_s + step.double_support_s
             # While recovering (the steps after an adjusted one) no new adjustment starts: the

@@ -4,7 +4,9 @@ Per control period (docs/walking.md, "One control period"):
 1. the footstep planner extends the plan and gives the ZMP reference over the preview horizon;
 2. ZMP preview control (Kajita 2003) gives the centre-of-mass position;
 3. the torso is placed so the whole robot's CoM (computed by MuJoCo's kinematics for the last
-   targets, arms and upper-body sway included) lands on that position;
+   targets, arms and upper-body sway included) lands on that position, corrected by the
+   measured CoM's error after a push or with a widened sway (CoM feedback, Englsberger et al.,
+   IEEE T-RO 2015, in position-controlled form);
 4. analytic leg IK puts the feet on their planned poses;
 5. IMU feedback: the torso's tilt and angular rate correct the ankles (OP3/Darwin
    walking-module style) and its heading error steers the next footsteps;
@@ -44,18 +46,27 @@ class WalkingController:
         max_heading_correction_deg: limit of that correction per step.
         step_adjustment: a CapturePointStepper (push recovery: moves the step under way from
             the measured capture point), or None for none.
+        com_feedback_gain: centre-of-mass feedback (``com_feedback_active``): the torso is
+            placed this fraction of the measured CoM error away from the planned CoM, against
+            the error.
+        com_feedback_velocity_s: weight of the CoM velocity error in that error, s.
+        slip_tolerance_m: after a disturbance, a slip of the support foot from its planned
+            position beyond this moves the plan onto it (``_follow_slip``).
     """
 
     def __init__(self, model: mujoco.MjModel, gait: GaitParams, control_period_s: float,
                  preview_s: float = 1.6, heading_gain: float = 0.3,
                  max_heading_correction_deg: float = 4.0,
-                 step_adjustment: CapturePointStepper | None = None):
+                 step_adjustment: CapturePointStepper | None = None,
+                 com_feedback_gain: float = 0.2, com_feedback_velocity_s: float = 0.6,
+                 slip_tolerance_m: float = 0.01):
         self.model = model
         self.gait = gait
         self.control_period_s = control_period_s
         self._scratch = mujoco.MjData(model)          # kinematics of the targets, never stepped
         self._free_qpos = free_joint_qpos_address(model)
         self._torso_id = model.body(f"{MODEL_NAME}/torso").id
+        self._soles = [model.site(f"{MODEL_NAME}/{s}_sole").id for s in SIDES]
         self._gyro_adr = model.sensor_adr[model.sensor(f"{MODEL_NAME}/imu_gyro").id]
         self._actuator = {name: model.actuator(f"{MODEL_NAME}/{name}").id
                           for name in self._joint_names()}
@@ -89,6 +100,10 @@ class WalkingController:
         self._max_heading_correction = math.radians(max_heading_correction_deg)
         self._yaw_rate = 0.0
         self.step_adjustment = step_adjustment
+        self.com_feedback_gain = com_feedback_gain
+        self.com_feedback_velocity_s = com_feedback_velocity_s
+        self.slip_tolerance_m = slip_tolerance_m
+        self._slip_checked_step_s: float | None = None
         self.targets = np.zeros(model.nu)
         self.planner: FootstepPlanner | None = None
 
@@ -128,6 +143,16 @@ class WalkingController:
     def joint_qpos_address(self) -> dict[str, int]:
         return self._joint_qpos
 
+    @property
+    def com_feedback_active(self) -> bool:
+        """Whether the measured CoM feeds back into the torso placement: with a widened ZMP
+        sway (``lateral_sway_m`` > 0), and once the step adjustment has seen a disturbance
+        (a push); never in the presets' unpushed walking, which stays as planned."""
+        if not self.com_feedback_gain:
+            return False
+        return self.gait.lateral_sway_m > 0.0 or (
+            self.step_adjustment is not None and self.step_adjustment.disturbed_at_s is not None)
+
     # -- control --------------------------------------------------------------------------
     def command(self, forward_speed_mps: float, yaw_rate_dps: float, now_s: float) -> None:
         """Walk at a forward speed and yaw rate, clipped to the gait's limits; (0, 0) stops."""
@@ -149,14 +174,46 @@ class WalkingController:
         self.planner.update(now_s, self._preview_times[-1])
         if self.step_adjustment is not None:
             self.step_adjustment.update(now_s, data, self.planner)
+            if self.step_adjustment.disturbed_at_s is not None:
+                self._follow_slip(data)
             self.planner.update(now_s, self._preview_times[-1])
         reference = self.planner.zmp_reference(now_s + self._preview_times)
         self._preview.step(reference)
         roll, pitch = math.atan2(torso_mat[7], torso_mat[8]), -math.asin(torso_mat[6])
-        self._set_targets(now_s + self.control_period_s, gyro, (roll, pitch - self._lean))
+        com_correction = (0.0, 0.0)
+        if self.com_feedback_active:
+            # Relative to the support foot: the feet slip on the floor, so the plan and the
+            # real robot drift apart in the world.
+            step = self.planner.current_step
+            side = step.support_side if step is not None else 0
+            planned_foot = self.planner.feet_landed[side]
+            com_error = (data.subtree_com[self._torso_id, :2]
+                         - data.site_xpos[self._soles[side], :2]
+                         - self._preview.state[0] + (planned_foot.x, planned_foot.y))
+            mujoco.mj_subtreeVel(self.model, data)
+            com_error += self.com_feedback_velocity_s * (
+                data.subtree_linvel[self._torso_id, :2] - self._preview.state[1])
+            com_correction = -self.com_feedback_gain * com_error
+        self._set_targets(now_s + self.control_period_s, gyro, (roll, pitch - self._lean),
+                          com_correction)
         self._update_com_offset()
         data.ctrl[:] = self.targets
         return self.targets
+
+    def _follow_slip(self, data: mujoco.MjData) -> None:
+        """At each step start after a disturbance, move the plan onto the support foot's
+        measured position when the feet have slipped more than ``slip_tolerance_m`` from it
+        (a push slides the robot): the following steps then walk back to the commanded path,
+        which the plan alone would believe it never left."""
+        step = self.planner.current_step
+        if step is None or step.start_s == self._slip_checked_step_s:
+            return
+        self._slip_checked_step_s = step.start_s
+        planned = self.planner.feet_landed[step.support_side]
+        slip = data.site_xpos[self._soles[step.support_side], :2] - (planned.x, planned.y)
+        if math.hypot(*slip) > self.slip_tolerance_m:
+            self.planner.translate(slip)
+            self._preview.translate(slip)
 
     def _step_phase(self) -> tuple[float, float]:
         """(side sign of the support foot, sin(pi * progress of the step)); (0, 0) standing."""
@@ -166,13 +223,14 @@ class WalkingController:
         progress = (self._now - step.start_s) / (step.end_s - step.start_s)
         return SIDE_SIGN[step.support_side], math.sin(math.pi * min(1.0, max(0.0, progress)))
 
-    def _set_targets(self, now_s: float, gyro: np.ndarray, tilt=(0.0, 0.0)) -> None:
+    def _set_targets(self, now_s: float, gyro: np.ndarray, tilt=(0.0, 0.0),
+                     com_correction=(0.0, 0.0)) -> None:
         g = self.gait
         self._now = now_s
         feet, lifts = self.planner.feet_now(now_s)
         yaw = feet[1].yaw + math.remainder(feet[0].yaw - feet[1].yaw, 2 * math.pi) / 2.0
         body_rot = rot_z(yaw) @ self._lean_rot
-        com_xy = self._preview.state[0]
+        com_xy = self._preview.state[0] + com_correction
         torso_pos = np.array([com_xy[0] + self._com_offset[0], com_xy[1] + self._com_offset[1],
                               self._torso_height])
         ankle_roll_fb = g.gyro_ankle_roll_gain * float(gyro[0]) + g.tilt_ankle_gain * tilt[0]

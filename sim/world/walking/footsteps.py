@@ -236,6 +236,37 @@ class FootstepPlanner:
         self._current = moved
         self._replan_from_last()
 
+    def translate(self, shift_xy) -> None:
+        """Move the plan (feet, the step under way, ZMP reference) by ``shift_xy`` (world, m),
+        keeping the commanded path where it is: the steps after the one under way are planned
+        again and walk back to it (``path_return_m`` per step). Used when the real feet have
+        slipped away from the plan (push recovery); the poses now, and so the joint targets,
+        do not change."""
+        dx, dy = float(shift_xy[0]), float(shift_xy[1])
+
+        def moved(pose: Pose2D) -> Pose2D:
+            return Pose2D(pose.x + dx, pose.y + dy, pose.yaw)
+
+        def moved_step(step: Step) -> Step:
+            return replace(step, zmp_from=step.zmp_from + (dx, dy), zmp_on=step.zmp_on + (dx, dy),
+                           swing_from=moved(step.swing_from), swing_to=moved(step.swing_to),
+                           feet_after=(moved(step.feet_after[0]), moved(step.feet_after[1])),
+                           centre_after=moved(step.centre_after),
+                           centre_offset=(step.centre_offset[0] + dx, step.centre_offset[1] + dy),
+                           planned_swing_to=moved(step.planned_swing_to))
+
+        # The steps not yet started are planned again from the moved ones.
+        kept = [self._current] if self._current is not None else []
+        self.steps = deque(moved_step(step) for step in kept)
+        self._current = self.steps[0] if kept else None
+        if self._finished is not None:
+            self._finished = moved_step(self._finished)
+        self.feet_landed = (moved(self.feet_landed[0]), moved(self.feet_landed[1]))
+        self._replan_from_last()
+        if not self.steps:
+            self.centre = moved(self.centre)
+            self.centre_offset = (self.centre_offset[0] + dx, self.centre_offset[1] + dy)
+
     # -- references ---------------------------------------------------------------------
     def zmp_reference(self, times_s: np.ndarray) -> np.ndarray:
         """ZMP reference at ``times_s``, shape (len, 2): linear between the plan's breakpoints,

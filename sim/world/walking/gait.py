@@ -24,6 +24,8 @@ class GaitParams:
         step_width_m: lateral distance between the feet centres.
         lateral_sway_m: extra lateral offset of the ZMP reference towards the outside of the
             support foot; it widens the body's side-to-side sway (0 = ZMP at the foot centre).
+            Above 0 the controller's CoM feedback is on (docs/walking.md, "Push recovery"):
+            without it the real body overshoots the wider sway and falls.
         com_height_m: height of the centre of mass above the soles, the LIPM's z_c.
         torso_lean_deg: forward pitch of the torso while walking; the neck tilts the head back
             by the same angle so the camera stays level on average.

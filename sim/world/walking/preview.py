@@ -54,6 +54,10 @@ class ZmpPreviewController:
         self.state[:] = 0.0
         self.state[0] = com_xy
 
+    def translate(self, shift_xy) -> None:
+        """Move the CoM's position by ``shift_xy`` (velocity and acceleration unchanged)."""
+        self.state[0] += shift_xy
+
     def step(self, zmp_reference: np.ndarray) -> np.ndarray:
         """Advance one period given the ZMP references of the next N periods, shape (N, 2).
 

@@ -73,8 +73,8 @@ def test_bad_pushes_are_value_errors(model, args, match):
 # -- push recovery ----------------------------------------------------------------------------
 # Seeds set the push's moment (push_recovery.push_trial): seeds 0 and 1 push during a step on
 # the left foot, seeds 2 and 3 during a step on the right foot. A sideways push towards the
-# support foot's side in single support is not survived at 2 N s (docs/walking.md, "Push
-# recovery"): the lateral cases push towards the swing foot's side.
+# support foot's side in single support is not survived at 2 N s by every seed (docs/walking.md,
+# "Push recovery"): the lateral cases here push towards the swing foot's side.
 SURVIVED_2NS = [(gait, direction, seed) for gait in ("default", "paper_like")
                 for direction, seeds in (("forward", range(4)), ("backward", range(4)),
                                          ("left", (2,)), ("right", (0,)))
@@ -117,7 +117,61 @@ def test_unpushed_walking_is_unchanged_by_the_step_adjustment(model, gait):
         return sim
     adjusted, plain = walk(True), walk(False)
     assert adjusted.controller.step_adjustment.adjusted_steps == 0
+    assert adjusted.controller.step_adjustment.disturbed_at_s is None
+    assert not adjusted.controller.com_feedback_active
     assert np.array_equal(adjusted.data.qpos, plain.data.qpos)
+
+
+# Sideways pushes towards the support foot's side (seeds 0 and 1 to the left, 2 and 3 to the
+# right): the largest impulse every seed survives (docs/walking.md, "Pushes"), with the path
+# recovered.
+SUPPORT_SIDE_PUSHES = [("left", 0), ("left", 1), ("right", 2), ("right", 3)]
+
+
+@pytest.mark.parametrize("gait, impulse_ns", [("default", 0.75), ("paper_like", 1.25)])
+@pytest.mark.parametrize("direction, seed", SUPPORT_SIDE_PUSHES)
+def test_a_push_towards_the_support_foot_is_survived_and_the_path_recovered(
+        model, gait, impulse_ns, direction, seed):
+    trial = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed)
+    assert trial.recovered, trial
+
+
+def test_a_2ns_push_towards_the_support_foot_mid_step_is_survived_by_paper_like(model):
+    trial = push_trial(model, "paper_like", 2.0, DIRECTIONS_DEG["right"], seed=2)
+    assert trial.recovered, trial
+
+
+@pytest.mark.parametrize("gait, impulse_ns, direction, seed", [
+    ("default", 1.25, "right", 2), ("paper_like", 1.5, "right", 3), ("paper_like", 2.0, "right", 2)])
+def test_com_feedback_saves_support_side_pushes_that_topple_the_controller_without_it(
+        model, gait, impulse_ns, direction, seed):
+    without = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed,
+                         com_feedback=False)
+    with_feedback = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed)
+    assert without.fell
+    assert with_feedback.recovered, with_feedback
+
+
+@pytest.mark.parametrize("gait", ["default", "paper_like"])
+def test_lateral_sway_walks_20s_and_widens_the_sway(model, gait):
+    def walk(sway_m, com_feedback=True):
+        sim = RobotSimulation(model, gait=replace(GAIT_PRESETS[gait], lateral_sway_m=sway_m),
+                              com_feedback=com_feedback)
+        sim.run(1.0)
+        sim.command(forward_speed_mps=0.1)
+        lateral = []
+        while sim.time < 21.0 and sim.fall is None:
+            sim.step()
+            if sim.time > 5.0:
+                lateral.append(sim.data.subtree_com[model.body(TORSO_BODY_NAME).id, 1])
+        return sim, (max(lateral) - min(lateral)) if lateral else None
+    narrow, narrow_range = walk(0.01)
+    wide, wide_range = walk(0.02)
+    assert narrow.fall is None and wide.fall is None, (narrow.fall, wide.fall)
+    assert narrow.controller.com_feedback_active
+    assert wide_range > narrow_range + 0.005
+    without_feedback, _ = walk(0.02, com_feedback=False)
+    assert without_feedback.fall is not None and without_feedback.fall.time_s < 5.0
 
 
 @pytest.mark.parametrize("gait", ["default", "paper_like"])
@@ -158,3 +212,25 @@ def test_planner_moves_the_step_under_way_and_returns_to_the_path():
     assert planner.steps[1].zmp_on[1] == pytest.approx(moved.swing_to.y)
     with pytest.raises(ValueError, match="landed"):
         planner.adjust_current_step((0.0, 0.01), moved.end_s)
+
+
+def test_planner_translation_keeps_relative_poses_and_returns_to_the_path():
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0, path_return_m=0.02)
+    planner.set_command(0.05, 0.0, 0.0)
+    planner.update(0.0, 3.0)
+    planner.update(1.0, 3.0)                    # second step, mid-swing
+    now = 1.1
+    feet_before, lifts_before = planner.feet_now(now)
+    zmp_before = planner.zmp_reference(np.array([now]))
+    planner.translate((0.01, 0.05))
+    feet_after, lifts_after = planner.feet_now(now)
+    assert lifts_after == lifts_before
+    for before, after in zip(feet_before, feet_after):
+        assert (after.x, after.y, after.yaw) == pytest.approx((before.x + 0.01, before.y + 0.05,
+                                                               before.yaw))
+    # The commanded path stays put: the later steps, planned again, come back to it, 2 cm per
+    # step.
+    planner.update(now, 3.0)
+    np.testing.assert_allclose(planner.zmp_reference(np.array([now])), zmp_before + (0.01, 0.05))
+    offsets = [s.centre_offset[1] for s in planner.steps]
+    assert offsets[:4] == pytest.approx([0.05, 0.03, 0.01, 0.0], abs=1e-3)
