@@ -233,6 +233,9 @@ class WideSearch:
         # No shift beyond the frame can keep an overlap.
         half_shift = min(max(int(max_shift) // 2, 1), min(self.reference.shape) - 1)
         self.correlation = MaskedCorrelation(self.reference.shape, half_shift, min_overlap)
+        # The reference's share at rotation 0, a candidate on most frames: made once, when
+        # first asked for.
+        self._upright: MaskedSpectra | None = None
 
     def spectra(self, half_image: np.ndarray, half_valid: np.ndarray) -> MaskedSpectra:
         """The current frame's share of the correlation, once per frame (half resolution)."""
@@ -243,15 +246,23 @@ class WideSearch:
         """Shift (dx, dy), full-resolution pixels, of the current frame for ``angle_deg``;
         ``near`` is ignored (every shift is scored; the signature is
         :meth:`~stabilizer.fncc.RotatedTemplate.match`'s, so that the climb takes either)."""
+        found = self.correlation.match(self._reference_spectra(float(angle_deg)), current)
+        return TemplateMatch(2.0 * found.x, 2.0 * found.y, found.peak, found.at_border,
+                             found.height)
+
+    def _reference_spectra(self, angle_deg: float) -> MaskedSpectra:
+        """The rotated reference's share of the correlation."""
+        if angle_deg == 0.0 and self._upright is not None:
+            return self._upright
         height, width = self.reference.shape
-        rotation = cv2.getRotationMatrix2D(self.centre, float(angle_deg), 1.0)
+        rotation = cv2.getRotationMatrix2D(self.centre, angle_deg, 1.0)
         rotated = cv2.warpAffine(self.reference, rotation, (width, height),
                                  flags=cv2.INTER_LINEAR)
         valid = cv2.warpAffine(self.valid, rotation, (width, height), flags=cv2.INTER_NEAREST)
-        found = self.correlation.match(
-            self.correlation.spectra(rotated, valid.view(bool), moving=False), current)
-        return TemplateMatch(2.0 * found.x, 2.0 * found.y, found.peak, found.at_border,
-                             found.height)
+        spectra = self.correlation.spectra(rotated, valid.view(bool), moving=False)
+        if angle_deg == 0.0:
+            self._upright = spectra
+        return spectra
 
 
 def half_resolution_valid(valid: np.ndarray) -> np.ndarray:

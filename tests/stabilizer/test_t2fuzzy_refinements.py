@@ -107,6 +107,21 @@ def test_wide_search_scores_the_whole_overlap():
     assert abs(central.x - truth.dx) > 3.0  # the central template alone slides along the edge
 
 
+def test_wide_search_reuses_its_upright_reference_exactly():
+    """Rotation 0 is scored on most frames: the reference's spectra at 0 are made once per
+    reference, and every later frame gets the very match a fresh search gives."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    reused = WideSearch(smoothed, reference > 0, 72, 0.3)
+    for truth in (Motion(0.0, 12.0, -6.0), Motion(4.0, -20.0, 9.0), Motion(-2.0, 3.0, 30.0)):
+        current = apply_motion(reference, truth)
+        half, valid = cv2.pyrDown(_smoothed(current)), half_resolution_valid(current > 0)
+        fresh = WideSearch(smoothed, reference > 0, 72, 0.3)
+        for angle in (0.0, truth.angle_deg, 0.0):
+            assert (reused.match(reused.spectra(half, valid), angle)
+                    == fresh.match(fresh.spectra(half, valid), angle))
+
+
 def test_a_climb_that_finds_no_peak_is_unconverged():
     """A climb cut off by ``search_max_steps`` (here 1 step of 1.5 deg at each resolution, from
     0 towards a 7 deg rotation) reports that it found no local maximum."""
