@@ -75,25 +75,30 @@ def scenario_name(scenario: str | os.PathLike) -> str:
 
 
 def build_robot(scene_name: str, scene_seed: int = 0, gait="default", seed: int = 0,
-                scene_params: Mapping[str, Any] | None = None):
+                scene_params: Mapping[str, Any] | None = None, floor=None):
     """Scene ``scene_name`` with the humanoid standing at its start, ready to walk.
 
     ``gait`` is a GaitParams or a preset name; ``seed`` perturbs the initial joint angles;
-    ``scene_params`` are the scene's keyword parameters (docs/scenes.md).
+    ``scene_params`` are the scene's keyword parameters and ``floor`` its floor (a
+    sim.world.scenes.Floor; None: flat) (docs/scenes.md).
     """
     from sim.world.scenes import build_scene
     from sim.world.walking import RobotSimulation
     from sim.world.assembly import assemble, compile_world
 
-    scene = build_scene(scene_name, scene_seed, **(scene_params or {}))
+    scene = build_scene(scene_name, scene_seed, floor, **(scene_params or {}))
     model = compile_world(assemble(scene.arena, scene.start_xy, scene.start_yaw_deg))
     return RobotSimulation(model, gait=gait, seed=seed)
 
 
 def scenario_robot(scenario):
-    """The robot of a loaded scenario: its scene and scene parameters, gait and seed."""
-    return build_robot(scenario.scene, scenario.scene_seed, scenario.gait.params(),
-                       scenario.seed, scenario.scene_params)
+    """The robot of a loaded scenario: its scene, scene parameters and floor, gait and seed,
+    with the scenario's pushes scheduled."""
+    robot = build_robot(scenario.scene, scenario.scene_seed, scenario.gait.params(),
+                        scenario.seed, scenario.scene_params, scenario.floor.floor())
+    for push in scenario.pushes:
+        robot.schedule_push(push.t, push.impulse_ns, push.duration_s)
+    return robot
 
 
 def open_sensor(scenario, robot):
@@ -138,13 +143,16 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
 @dataclass(frozen=True)
 class SourceFrame:
     """One frame as the scorer gets it: decoded as a sequence stores it, with its gait cycle,
-    the robot's torso position (for the recording) and, from the simulator, the stored images."""
+    the robot's torso position (for the recording), from the simulator the stored images and
+    every body's pose (``xpos``, ``xquat``) as the frame was read, and its ground truth when
+    the source computed it (None: the scorer computes it)."""
 
     frame: Any
     gait_cycle: int
     robot_position: Any
     encoded: Any = None
     truth: Any = None
+    body_poses: Any = None
 
 
 class SimulatedFrames:
@@ -185,10 +193,12 @@ class SimulatedFrames:
         no_surface_m, unit_m = self.sensor.tof.no_surface_depth_m, self.depth_unit_m
         for frame in walk_frames(self.scenario, self.robot, self.sensor, self.n_frames):
             encoded = encode_frame(frame, no_surface_m, unit_m)
+            data = self.robot.data
             yield SourceFrame(
                 decoded_frame(frame.index, frame.time_s, frame.cam_pos, frame.cam_mat, encoded,
                               unit_m),
-                self.robot.gait_cycle, self.robot.torso_pose()[0], encoded)
+                self.robot.gait_cycle, self.robot.torso_pose()[0], encoded,
+                body_poses=(data.xpos.copy(), data.xquat.copy()))
 
     @property
     def depth_unit_m(self) -> float:
@@ -358,7 +368,7 @@ def run(config: RunConfig) -> dict:
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     scoring = Scoring(scenario, methods, Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,
-                      meta={"max_frames": config.max_frames})
+                      meta={"max_frames": config.max_frames}, world_model=source.robot.model)
     estimations = {method: MethodEstimation(method) for method in methods}
     return score_frames(PrefetchedFrames(source), scoring, estimations, config.progress)
 
@@ -423,7 +433,7 @@ class Scoring:
     """
 
     def __init__(self, scenario, methods: tuple[str, ...], out_dir: Path, record: bool,
-                 meta: Mapping[str, Any]):
+                 meta: Mapping[str, Any], world_model=None):
         from sim.harness.scoring import ItfAccumulator
 
         self.scenario, self.methods, self.out_dir = scenario, methods, out_dir
@@ -440,6 +450,7 @@ class Scoring:
         self.references = ReferencePolicy(scenario.evaluation.reference)
         self.status, self.message = COMPLETE, ""
         self.recorder = None
+        self.world_model = world_model  # the recording's 3-D scene; None for a sequence
         self.wall_start = math.nan
 
     def start(self) -> None:
@@ -454,7 +465,8 @@ class Scoring:
                 self.recording_path, self.methods,
                 properties={"scenario": self.scenario_dict, "seed": self.scenario.seed},
                 frame_stride=self.scenario.recording.frame_stride,
-                recording_id=f"{self.scenario.name}-seed{self.scenario.seed}")
+                recording_id=f"{self.scenario.name}-seed{self.scenario.seed}",
+                model=self.world_model)
 
     def score_frame(self, item: SourceFrame, estimations: Mapping[str, Any], intrinsics) -> None:
         """Score one frame against its reference with the truth and every method; log it."""
@@ -478,7 +490,7 @@ class Scoring:
             self.recorder.log_frame(
                 frame, estimates={m: e.motion for m, e in estimates.items()}, truth=truth,
                 compensated={m: e.compensated for m, e in estimates.items()},
-                robot_position=item.robot_position)
+                robot_position=item.robot_position, body_poses=item.body_poses)
 
     def end_with_fall(self, fall) -> None:
         """Mark the run as ended by the robot's fall (anything with ``time_s`` and ``reason``)."""
@@ -568,7 +580,7 @@ def record(config: RecordConfig) -> dict:
                 for item in source:
                     frame = item.frame
                     reference = references.reference_for(frame, item.gait_cycle)
-                    truth = item.truth if item.truth is not None else frame_truth(reference, frame, intrinsics)
+                    truth = frame_truth(reference, frame, intrinsics)
                     writer.add(item.encoded, TruthRow(
                         frame.index, frame.time_s, reference.index, item.gait_cycle,
                         *truth.motion.as_tuple(), truth.motion.status, truth.residual_rms_px,

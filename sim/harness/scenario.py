@@ -22,6 +22,17 @@ the dataclasses below, one per TOML table. Example::
     t = 1.0
     speed = 0.1
 
+    [floor]                               # the floor (docs/scenes.md, "Floors"); default flat
+    slope_deg = 2.0                       # 0 to 3 degrees
+    slope_direction_deg = 90.0            # the uphill direction, deg counter-clockwise from +x
+    bump_height_m = 0.003                 # 0 to 0.005 m; bumps drawn from scene_seed
+
+    [[pushes]]                            # pushes on the torso, in any order; default none
+    t = 5.0                               # start, s (before duration_s)
+    impulse_ns = [0.0, 1.5, 0.0]          # impulse, N s, world x, y, z (each -10 to 10)
+    duration_s = 0.1                      # delivered as a constant force over this time, s
+                                          # (a whole number of 0.0025 s physics steps)
+
     [gait]
     preset = "default"                    # a key of sim.world.walking.gait.GAIT_PRESETS
     overrides = { step_height_m = 0.035 } # any GaitParams field
@@ -58,7 +69,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from scenarios import SCENARIOS_DIR
-from sim.world.scenes import SCENES, SceneParameterError, scene_layout
+from sim.world.assembly import PHYSICS_TIMESTEP_S
+from sim.world.scenes import SCENES, Floor, SceneParameterError, scene_layout
+from sim.world.scenes.floor import FLOOR_BOUNDS
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
 from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
 from sim.harness.validation import FileValueError, is_finite_number, is_int, read_toml
@@ -67,6 +80,10 @@ from stabilizer.api import available_methods
 REFERENCE_POLICIES = ("cycle_start", "previous", "first")
 #: Longest scenario, seconds.
 MAX_DURATION_S = 3600.0
+#: Largest push impulse along each world axis, N s (the robot is 6 kg: 10 N s ~ 1.7 m/s).
+MAX_PUSH_IMPULSE_NS = 10.0
+#: Longest push, seconds.
+MAX_PUSH_DURATION_S = 1.0
 
 
 class ScenarioError(FileValueError):
@@ -89,6 +106,47 @@ class Command:
                         lambda v: 0 <= v <= 0.5)
     yaw_rate: float = _key(0.0, "-90 to 90 deg/s (and at most the gait's top turn rate)",
                            lambda v: -90 <= v <= 90)
+
+
+@dataclass(frozen=True)
+class Push:
+    """From time ``t`` on, push the robot's torso with the impulse ``impulse_ns`` (N s, world
+    x, y, z), delivered as a constant force ``impulse_ns / duration_s`` at its centre of mass
+    (sim.world.walking.simulation.RobotSimulation.schedule_push)."""
+
+    t: float = _key(0.0, "a time >= 0 s, before duration_s", lambda v: 0 <= v <= MAX_DURATION_S)
+    impulse_ns: tuple = _key((0.0, 0.0, 0.0), f"three numbers [x, y, z], N s in the world "
+                             f"frame, each -{MAX_PUSH_IMPULSE_NS:g} to {MAX_PUSH_IMPULSE_NS:g}")
+    duration_s: float = _key(0.1, f"{PHYSICS_TIMESTEP_S:g} to {MAX_PUSH_DURATION_S:g} s, a "
+                             f"whole number of physics steps ({PHYSICS_TIMESTEP_S:g} s)",
+                             lambda v: (PHYSICS_TIMESTEP_S - 1e-12 <= v <= MAX_PUSH_DURATION_S
+                                        and _whole_steps(v)))
+
+
+def _whole_steps(duration_s: float) -> bool:
+    """True if ``duration_s`` is a whole number of physics steps (so the impulse is exact)."""
+    steps = duration_s / PHYSICS_TIMESTEP_S
+    return abs(steps - round(steps)) < 1e-6
+
+
+@dataclass(frozen=True)
+class FloorSpec:
+    """The floor the scene stands on (sim.world.scenes.floor, docs/scenes.md "Floors"): its
+    slope and bumps; the bumps are drawn from ``scene_seed``. The default is level and smooth."""
+
+    slope_deg: float = _key(0.0, FLOOR_BOUNDS["slope_deg"][2],
+                            lambda v: FLOOR_BOUNDS["slope_deg"][0] <= v
+                            <= FLOOR_BOUNDS["slope_deg"][1])
+    slope_direction_deg: float = _key(0.0, FLOOR_BOUNDS["slope_direction_deg"][2],
+                                      lambda v: FLOOR_BOUNDS["slope_direction_deg"][0] <= v
+                                      <= FLOOR_BOUNDS["slope_direction_deg"][1])
+    bump_height_m: float = _key(0.0, FLOOR_BOUNDS["bump_height_m"][2],
+                                lambda v: FLOOR_BOUNDS["bump_height_m"][0] <= v
+                                <= FLOOR_BOUNDS["bump_height_m"][1])
+
+    def floor(self) -> Floor:
+        """The scene option ``sim.world.scenes.build_scene(..., floor=...)``."""
+        return Floor(self.slope_deg, self.slope_direction_deg, self.bump_height_m)
 
 
 @dataclass(frozen=True)
@@ -156,11 +214,13 @@ class Scenario:
     scene_seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
     scene_params: dict = _key(dict, "a table [scene_params] of the scene's parameters "
                               "(docs/scenes.md); resolved, it lists every parameter")
+    floor: FloorSpec = _key(FloorSpec, "a table [floor]")
     seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
     duration_s: float = _key(20.0, f"0 < duration_s <= {MAX_DURATION_S:g}",
                              lambda v: 0 < v <= MAX_DURATION_S)
     commands: tuple = _key(lambda: (Command(),), "an array of tables [[commands]] with t, "
                            "speed, yaw_rate; the first at t = 0, times increasing")
+    pushes: tuple = _key((), "an array of tables [[pushes]] with t, impulse_ns, duration_s")
     gait: GaitSpec = _key(GaitSpec, "a table [gait]")
     sensor: SensorSpec = _key(SensorSpec, "a table [sensor]")
     evaluation: EvaluationSpec = _key(EvaluationSpec, "a table [evaluation]")
@@ -187,8 +247,8 @@ def _plain(value):
 
 # -- loading and validation -------------------------------------------------------------------
 
-_SECTIONS = {"gait": GaitSpec, "sensor": SensorSpec, "evaluation": EvaluationSpec,
-             "recording": RecordingSpec}
+_SECTIONS = {"floor": FloorSpec, "gait": GaitSpec, "sensor": SensorSpec,
+             "evaluation": EvaluationSpec, "recording": RecordingSpec}
 
 
 def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -215,7 +275,7 @@ def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) 
 def scenario_from_dict(raw: Mapping[str, Any], source: str = "<dict>") -> Scenario:
     """Validate a scenario given as a (TOML-like) dict; ``source`` names it in errors."""
     values = _check_table(Scenario, raw, "", source,
-                          nested=("commands", "scene_params", *_SECTIONS))
+                          nested=("commands", "pushes", "scene_params", *_SECTIONS))
     values["scene_params"] = _check_scene_params(
         raw.get("scene_params", {}), values.get("scene", Scenario.scene), source)
     for section, cls in _SECTIONS.items():
@@ -227,6 +287,8 @@ def scenario_from_dict(raw: Mapping[str, Any], source: str = "<dict>") -> Scenar
                                              nested=("overrides",), raw_keys=("overrides",)))
     values["commands"] = _check_commands(raw.get("commands"), values.get("duration_s", 20.0),
                                          source)
+    values["pushes"] = _check_pushes(raw.get("pushes", []), values.get("duration_s", 20.0),
+                                     source)
     scenario = Scenario(**values, source=source)
     _check_gait(scenario, source)
     _check_sensor(scenario, source)
@@ -297,6 +359,36 @@ def _check_commands(raw_commands, duration_s, source) -> tuple[Command, ...]:
             raise ScenarioError(source, f"commands[{i}].t", f"{times[i]!r} does not increase "
                                 f"or is not before duration_s={duration_s}", allowed)
     return tuple(commands)
+
+
+def _check_pushes(raw_pushes, duration_s, source) -> tuple[Push, ...]:
+    allowed = Scenario.__dataclass_fields__["pushes"].metadata["allowed"]
+    if not isinstance(raw_pushes, list):
+        raise ScenarioError(source, "pushes", f"got {raw_pushes!r}", allowed)
+    pushes = []
+    for i, table in enumerate(raw_pushes):
+        if not isinstance(table, Mapping):
+            raise ScenarioError(source, f"pushes[{i}]", f"got {table!r}", allowed)
+        values = _check_table(Push, table, f"pushes[{i}].", source, nested=("impulse_ns",))
+        if "impulse_ns" in table:
+            values["impulse_ns"] = _impulse(table["impulse_ns"], f"pushes[{i}].impulse_ns",
+                                            source)
+        push = Push(**values)
+        if not push.t < duration_s:
+            raise ScenarioError(source, f"pushes[{i}].t", f"{push.t!r} is not before "
+                                f"duration_s={duration_s}", "a time >= 0 s, before duration_s")
+        pushes.append(push)
+    return tuple(pushes)
+
+
+def _impulse(value, key: str, source: str) -> tuple[float, float, float]:
+    allowed = Push.__dataclass_fields__["impulse_ns"].metadata["allowed"]
+    if not (isinstance(value, (list, tuple)) and len(value) == 3
+            and all(is_finite_number(v) for v in value)):
+        raise ScenarioError(source, key, f"got {value!r}", allowed)
+    if not all(abs(v) <= MAX_PUSH_IMPULSE_NS for v in value):
+        raise ScenarioError(source, key, f"{list(value)!r} is out of range", allowed)
+    return tuple(float(v) for v in value)
 
 
 def _check_scene_params(table, scene: str, source: str) -> dict:

@@ -10,6 +10,7 @@ import numpy as np
 from dm_control import mjcf
 
 from sim.world.scenes.arena import Arena
+from sim.world.scenes.floor import FLAT, BumpField, Floor
 from sim.world.scenes.furniture import Furniture
 from sim.world.scenes.lane import CLEAR_HALF_WIDTH_M, lane_intrusions, start_heading_deg
 from sim.world.scenes.placement import Placement
@@ -30,6 +31,8 @@ class Scene:
         clear_half_width_m: half-width of the obstacle-free lane around the path.
         description: one line for reports.
         params: the scene's parameters (name -> value, defaults included).
+        floor: the floor it stands on (:mod:`sim.world.scenes.floor`).
+        bumps: the floor's bumps over the world's x, y (None on a smooth floor).
     """
 
     name: str
@@ -41,6 +44,8 @@ class Scene:
     clear_half_width_m: float = CLEAR_HALF_WIDTH_M
     description: str = ""
     params: dict[str, Any] = field(default_factory=dict)
+    floor: Floor = FLAT
+    bumps: BumpField | None = None
 
     def compile(self) -> mujoco.MjModel:
         """The arena alone compiled, with its own clip planes (no robot)."""
@@ -65,13 +70,14 @@ class SceneBuilder:
         seed: seed of the random generator.
         path: the robot's path (N, 2); nothing is placed within ``clear_half_width_m`` of it.
         clear_half_width_m: half-width of the lane kept free.
+        floor: the floor the scene stands on; it is laid (bumps, tilt) by :meth:`finish`.
     """
 
     def __init__(self, name: str, seed: int, path: np.ndarray,
-                 clear_half_width_m: float = CLEAR_HALF_WIDTH_M):
+                 clear_half_width_m: float = CLEAR_HALF_WIDTH_M, floor: Floor = FLAT):
         self.name, self.seed, self.path = name, seed, path
         self.rng = np.random.default_rng(seed)
-        self.arena = Arena(name)
+        self.arena = Arena(name, floor)
         self.placement = Placement(path, self.rng, clear_half_width_m)
         self.structure = Structure(self.arena, self.placement)
         self.furniture = Furniture(self.arena, self.rng)
@@ -93,13 +99,15 @@ class SceneBuilder:
             (radius, radius), zone)
 
     def finish(self, description: str, params: dict[str, Any]) -> Scene:
-        """The finished Scene; raises if anything reaches into the lane."""
+        """The finished Scene, its floor laid; raises if anything reaches into the lane (checked
+        on the level, smooth floor, where the lane is flat)."""
         clear = self.placement.clear_half_width_m
-        scene = Scene(self.name, self.seed, self.arena.root, self.path.copy(),
-                      self.path[0].copy(), start_heading_deg(self.path), clear, description,
-                      dict(params))
-        intruders = lane_intrusions(scene.compile(), self.path, clear)
+        intruders = lane_intrusions(mujoco.MjModel.from_xml_string(
+            self.arena.root.to_xml_string(), self.arena.root.get_assets()), self.path, clear)
         if intruders:
             raise RuntimeError(f"scene {self.name!r} seed {self.seed}: {intruders} reach into "
                                f"the robot's lane (parameters {params})")
-        return scene
+        bumps = self.arena.lay_floor(self.path, self.seed)
+        return Scene(self.name, self.seed, self.arena.root, self.path.copy(),
+                     self.path[0].copy(), start_heading_deg(self.path), clear, description,
+                     dict(params), self.arena.floor, bumps)

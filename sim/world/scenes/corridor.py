@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from sim.world.scenes.builder import Scene, SceneBuilder
+from sim.world.scenes.floor import FLAT, Floor
 from sim.world.scenes.lane import polyline
 from sim.world.scenes.variation import (SceneLayout, draw, draw_count, integer_range,
                                         positions, real_range)
@@ -74,8 +75,8 @@ class Corridor(SceneLayout):
                         f"than the {len(self.side_door_slots_m)} side_door_slots_m",
                         "at most as many doors as slots")
 
-    def build(self, seed: int) -> Scene:
-        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)))
+    def build(self, seed: int, floor: Floor = FLAT) -> Scene:
+        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)), floor=floor)
         rng, structure = builder.rng, builder.structure
         half_width = draw(rng, self.half_width_m)
         end_x = WALK_M + draw(rng, self.end_wall_past_walk_m)

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from sim.world.scenes.builder import Scene, SceneBuilder
+from sim.world.scenes.floor import FLAT, Floor
 from sim.world.scenes.lane import polyline
 from sim.world.scenes.variation import (SceneLayout, draw, draw_count, integer_range,
                                         positions, real_range)
@@ -66,8 +67,8 @@ class Hall(SceneLayout):
     pillar_radius_m: tuple = real_range((0.15, 0.3), within=(0.05, 0.4))
     bench_count: tuple = integer_range((2, 4), within=(0, 20))
 
-    def build(self, seed: int) -> Scene:
-        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)))
+    def build(self, seed: int, floor: Floor = FLAT) -> Scene:
+        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)), floor=floor)
         rng, structure = builder.rng, builder.structure
         foot_x = WALK_M + draw(rng, self.stairs_past_walk_m)
         steps, rise = draw_count(rng, self.stair_steps), draw(rng, self.stair_rise_m)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from sim.world.scenes.builder import Scene, SceneBuilder
+from sim.world.scenes.floor import FLAT, Floor
 from sim.world.scenes.lane import polyline
 from sim.world.scenes.variation import (SceneLayout, draw, draw_count, integer, integer_range,
                                         real_range)
@@ -50,8 +51,8 @@ class Lab(SceneLayout):
     objects_per_depth_band: int = integer(2, within=(0, 10))
     extra_clutter_count: tuple = integer_range((4, 7), within=(0, 30))
 
-    def build(self, seed: int) -> Scene:
-        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)))
+    def build(self, seed: int, floor: Floor = FLAT) -> Scene:
+        builder = SceneBuilder(self.name, seed, polyline(("line", WALK_M)), floor=floor)
         rng = builder.rng
         xmax = WALK_M + draw(rng, self.room_past_walk_m)
         half_width = draw(rng, self.half_width_m)

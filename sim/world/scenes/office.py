@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from sim.world.scenes.builder import Scene, SceneBuilder
+from sim.world.scenes.floor import FLAT, Floor
 from sim.world.scenes.lane import polyline
 from sim.world.scenes.variation import (SceneLayout, draw, draw_count, integer, integer_range,
                                         real_range)
@@ -55,9 +56,9 @@ class Office(SceneLayout):
     desk_count: tuple = integer_range((3, 4), within=(0, 20))
     crate_count: tuple = integer_range((3, 5), within=(0, 30))
 
-    def build(self, seed: int) -> Scene:
+    def build(self, seed: int, floor: Floor = FLAT) -> Scene:
         builder = SceneBuilder(self.name, seed, polyline(
-            ("line", LEG_M), ("arc", TURN_RADIUS_M, 90), ("line", LEG_M)))
+            ("line", LEG_M), ("arc", TURN_RADIUS_M, 90), ("line", LEG_M)), floor=floor)
         rng, furniture, placement = builder.rng, builder.furniture, builder.placement
         second_leg_x, walk_end_y = LEG_M + TURN_RADIUS_M, TURN_RADIUS_M + LEG_M
         xmax = second_leg_x + draw(rng, self.room_past_second_leg_m)

@@ -120,8 +120,10 @@ class SceneLayout:
         """Parameter name -> value, every parameter (defaults included)."""
         return {name: getattr(self, name) for name in self.parameter_names()}
 
-    def build(self, seed: int):
-        """The scene drawn from ``seed``: a :class:`sim.world.scenes.builder.Scene`."""
+    def build(self, seed: int, floor=None):
+        """The scene drawn from ``seed``, standing on ``floor`` (a
+        :class:`sim.world.scenes.floor.Floor`; the subclasses default to the flat floor): a
+        :class:`sim.world.scenes.builder.Scene`."""
         raise NotImplementedError
 
     def refuse(self, parameter: str, problem: str, accepted: str | None = None):

@@ -4,10 +4,13 @@ import dataclasses
 import json
 import re
 from collections import defaultdict
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import rerun as rr
 from rerun.chunk import RrdReader
+from scipy.spatial.transform import Rotation
 
 from sim.harness.ground_truth import ground_truth
 from sim.harness.recording import RunRecorder, ellipse_outline, label_colours
@@ -206,3 +209,194 @@ def test_long_paths_are_thinned_but_keep_their_ends(tmp_path, monkeypatch):
             table = chunk.to_record_batch().to_pydict()
             strips += table[next(name for name in table if name.endswith("strips"))]
     assert [[point[0] for point in row[0]] for row in strips] == [[0.0], [0.0, 3.0, 7.0, 10.0]]
+
+
+# ------------------------------------------------------------------ the 3-D world
+
+#: A small world: every shape the recorder draws, a ceiling, a material colour, and a free
+#: body (standing in for the robot) with a box and a capsule.
+WORLD_XML = """
+<mujoco>
+  <asset>
+    <material name="red" rgba="1 0 0 1"/>
+    <mesh name="tetra" vertex="0 0 0  1 0 0  0 1 0  0 0 1"/>
+  </asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 4 0.1" material="red"/>
+    <geom name="crate" type="box" size="0.1 0.2 0.3" pos="1 2 0.3" euler="0 0 90"/>
+    <geom name="barrel" type="cylinder" size="0.2 0.4" pos="-1 0 0.4"/>
+    <geom name="post" type="capsule" size="0.05 0.5" pos="0 -2 0.55"/>
+    <geom name="ball" type="sphere" size="0.25" pos="2 -1 0.25"/>
+    <geom name="rock" type="mesh" mesh="tetra" pos="3 3 0"/>
+    <geom name="hidden" type="box" size="1 1 1" group="3"/>
+    <body name="ceiling" pos="0 0 2.5">
+      <geom type="box" size="5 4 0.05"/>
+    </body>
+    <body name="walker" pos="0 0 1">
+      <freejoint/>
+      <geom type="box" size="0.1 0.1 0.1" rgba="0 1 0 1"/>
+      <geom type="capsule" size="0.03 0.2" pos="0 0 -0.3" rgba="0 0 1 1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _column(path, entity, component, static=None):
+    """Every row of one component of ``entity``, in file order (the chunks of a recording
+    written here come in logging order)."""
+    rows = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        if chunk.entity_path != entity:
+            continue
+        batch = chunk.to_record_batch()
+        if component in batch.schema.names and (static is None or
+                                                ("frame" not in batch.schema.names) == static):
+            rows += batch.column(component).to_pylist()
+    return rows
+
+
+def _walker_world():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(WORLD_XML)
+    return SimpleNamespace(model=model, data=mujoco.MjData(model))
+
+
+def _walker_poses():
+    """(position, quaternion w x y z) of the free body in three frames."""
+    return [(np.array([0.1 * i, -0.05 * i, 1.0 + 0.02 * i]),
+             Rotation.from_euler("z", 20.0 * i, degrees=True).as_quat(scalar_first=True))
+            for i in range(3)]
+
+
+@pytest.fixture(scope="module")
+def world_recording(tmp_path_factory):
+    import mujoco
+
+    path = tmp_path_factory.mktemp("world") / "recording.rrd"
+    world = _walker_world()
+    frames = _frames()
+    with RunRecorder(path, ["sift"], model=world.model, frame_stride=2) as rec:
+        for frame, (position, quaternion) in zip(frames, _walker_poses()):
+            world.data.qpos[:3], world.data.qpos[3:7] = position, quaternion
+            mujoco.mj_kinematics(world.model, world.data)
+            rec.log_frame(frame, estimates={"sift": Motion(0.0, 0.0, 0.0)},
+                          body_poses=(world.data.xpos, world.data.xquat))
+    return path
+
+
+def test_scene_geoms_are_logged_once_in_world_coordinates(world_recording):
+    rows = _rows_per_entity(world_recording)
+    for entity in ("/world/scene/boxes", "/world/scene/cylinders", "/world/scene/capsules",
+                   "/world/scene/ellipsoids", "/world/scene/mesh_5",
+                   "/world/scene/overhead/boxes"):
+        assert rows[entity][0] == 1 and rows[entity][1] == 0, entity
+    # The floor plane is a 1 cm box under z = 0, red from its material; the crate turned 90 deg.
+    (half_sizes,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:half_sizes")
+    (centres,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:centers")
+    (colours,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:colors")
+    (quaternions,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:quaternions")
+    assert len(half_sizes) == 2  # floor and crate; the group-3 geom is not drawn
+    assert np.allclose(half_sizes[0], [5.0, 4.0, 0.005]) and np.allclose(centres[0], [0, 0, -0.005])
+    assert colours[0] == 0xFF0000FF and colours[1] == 0x808080FF  # rgba packed, MuJoCo grey
+    assert np.allclose(half_sizes[1], [0.1, 0.2, 0.3]) and np.allclose(centres[1], [1, 2, 0.3])
+    assert np.allclose(np.abs(quaternions[1]), [0, 0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-6)
+    # A rerun capsule starts at one cap centre: 0.5 m below the geom's centre along its axis.
+    (ends,) = _column(world_recording, "/world/scene/capsules", "Capsules3D:translations")
+    (lengths,) = _column(world_recording, "/world/scene/capsules", "Capsules3D:lengths")
+    assert np.allclose(ends, [[0.0, -2.0, 0.05]]) and np.allclose(lengths, [1.0])
+    (cylinder_lengths,) = _column(world_recording, "/world/scene/cylinders",
+                                  "Cylinders3D:lengths")
+    assert np.allclose(cylinder_lengths, [0.8])
+    (sphere,) = _column(world_recording, "/world/scene/ellipsoids", "Ellipsoids3D:half_sizes")
+    assert np.allclose(sphere, [[0.25, 0.25, 0.25]])
+    (vertices,) = _column(world_recording, "/world/scene/mesh_5", "Mesh3D:vertex_positions")
+    assert len(vertices) == 4 and np.allclose(np.min(vertices, axis=0), [3.0, 3.0, 0.0],
+                                              atol=1e-5)
+    # The ceiling is drawn as a wireframe so the robot stays visible from above.
+    (ceiling,) = _column(world_recording, "/world/scene/overhead/boxes", "Boxes3D:centers")
+    assert np.allclose(ceiling, [[0.0, 0.0, 2.5]])
+    (fill,) = _column(world_recording, "/world/scene/overhead/boxes", "Boxes3D:fill_mode")
+    (solid,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:fill_mode")
+    assert fill != solid
+
+
+def test_moving_bodies_are_posed_every_frame_over_geoms_logged_once(world_recording):
+    body = "/world/robot/walker"
+    rows = _rows_per_entity(world_recording)
+    assert rows[body][1] == 3 and rows[body][2] == {"frame", "sim_time"}
+    assert rows[f"{body}/boxes"][0] == 1 and rows[f"{body}/boxes"][1] == 0
+    # Its geoms in the body's frame: the capsule's end 0.3 + 0.2 m below the body origin.
+    (ends,) = _column(world_recording, f"{body}/capsules", "Capsules3D:translations")
+    assert np.allclose(ends, [[0.0, 0.0, -0.5]])
+    translations = np.reshape(_column(world_recording, body, "Transform3D:translation"), (-1, 3))
+    quaternions = np.reshape(_column(world_recording, body, "Transform3D:quaternion"), (-1, 4))
+    assert len(translations) == len(quaternions) == 3
+    for (position, quaternion), translation, logged in zip(_walker_poses(), translations,
+                                                           quaternions):
+        assert np.allclose(translation, position, atol=1e-6)
+        assert np.allclose(logged, np.roll(quaternion, -1), atol=1e-6)  # rerun: x y z w
+    assert not any(entity.startswith("/world/robot/ceiling") for entity in rows)
+
+
+def test_depth_points_lie_on_the_surfaces_seen(world_recording):
+    # frame_stride 2: frames 0 and 2 of the box world (walls facing +x at these distances).
+    clouds = _column(world_recording, "/world/depth_points", "Points3D:positions", static=False)
+    assert len(clouds) == 2
+    rectangles = box_world()
+    for cloud in clouds:
+        cloud = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
+        assert len(cloud) > 1000
+        on_some_rectangle = np.zeros(len(cloud), dtype=bool)
+        for rectangle in rectangles:
+            offset = cloud - rectangle.centre
+            inside = np.abs(offset[:, 0]) < 1e-4
+            for half in (rectangle.half_u, rectangle.half_v):
+                half = np.asarray(half)
+                extent = np.linalg.norm(half)
+                inside &= np.abs(offset @ half / extent) <= extent + 1e-4
+            on_some_rectangle |= inside
+        assert on_some_rectangle.all()
+
+
+def test_a_recording_without_the_simulation_has_no_world(recording):
+    path, _ = recording
+    rows = _rows_per_entity(path)
+    assert not [entity for entity in rows if entity.startswith(("/world/scene",
+                                                                "/world/robot/"))]
+    assert rows["/world/depth_points"][1] == N_FRAMES
+
+
+def test_a_run_records_its_scene_and_the_walking_robot(tmp_path):
+    from scenarios import SCENARIOS_DIR
+    from sim.harness.runner import RunConfig, run, scenario_robot
+    from sim.harness.scenario import load_scenario
+    from sim.world.humanoid import robot_body_ids
+
+    scenario = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
+    run(RunConfig(scenario=scenario, out_dir=str(tmp_path), methods=("ecc",), max_frames=4,
+                  overrides={"recording.enabled": True, "recording.frame_stride": 1}))
+    path = tmp_path / "recording.rrd"
+    rows = _rows_per_entity(path)
+    model = scenario_robot(load_scenario(scenario, {})).model
+    scene_instances = sum(len(_column(path, entity, component)[0])
+                          for entity in rows if entity.startswith("/world/scene/")
+                          for component in (f"{kind}:{field}" for kind, field in (
+                              ("Boxes3D", "half_sizes"), ("Cylinders3D", "lengths"),
+                              ("Capsules3D", "lengths"), ("Ellipsoids3D", "half_sizes")))
+                          if _column(path, entity, component))
+    assert scene_instances == np.sum(model.body_weldid[model.geom_bodyid] == 0)
+    # One posed entity per robot body with geoms (MJCF names them "humanoid/<part>": the "/"
+    # is escaped in the entity path), each with a Transform3D a frame.
+    robot_bodies = {"/world/robot/" + rr.escape_entity_path_part(model.body(body).name)
+                    for body in robot_body_ids(model) if model.body_geomnum[body]}
+    posed = {entity for entity in rows if rows[entity][1] == 4
+             and re.fullmatch(r"/world/robot/(?:[^/\\]|\\.)+", entity)}
+    assert len(robot_bodies) == 14 and posed == robot_bodies
+    # The torso's pose is the robot path's newest point (both the torso's position).
+    torso = np.reshape(_column(path, "/world/robot/humanoid\\/torso",
+                               "Transform3D:translation"), (-1, 3))
+    path_strips = _column(path, "/world/robot_path", "LineStrips3D:strips")
+    assert np.allclose(torso[-1], path_strips[-1][0][-1], atol=1e-6)
+    assert 0.2 < torso[-1, 2] < 0.5  # standing height of the torso

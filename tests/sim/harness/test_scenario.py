@@ -159,6 +159,24 @@ frame_stride = 3
      "an integer from 0"),
     ('scene = "corridor"\n[scene_params]\nside_doors_per_wall = [1, 4]\n',
      "scene_params.side_doors_per_wall", "as many doors as slots"),
+    ('[floor]\nslope_deg = 4.0\n', "floor.slope_deg", "from 0 to 3"),
+    ('[floor]\nbump_height_m = 0.01\n', "floor.bump_height_m", "from 0 to 0.005"),
+    ('[floor]\nslope_direction_deg = "north"\n', "floor.slope_direction_deg", "-360 to 360"),
+    ('[floor]\nroughness = 1.0\n', "floor.roughness", "slope_deg, slope_direction_deg"),
+    ('floor = 2\n', "floor", "a table [floor]"),
+    ('pushes = 3\n', "pushes", "[[pushes]] with t, impulse_ns, duration_s"),
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [1.0, 2.0]\n', "pushes[0].impulse_ns", "three numbers"),
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 12.0, 0.0]\n', "pushes[0].impulse_ns",
+     "each -10 to 10"),
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, true, 0.0]\n', "pushes[0].impulse_ns",
+     "three numbers"),
+    ('duration_s = 5.0\n[[pushes]]\nt = 5.0\n', "pushes[0].t", "before duration_s"),
+    ('[[pushes]]\nt = -1.0\n', "pushes[0].t", "a time >= 0 s"),
+    ('[[pushes]]\nt = 1.0\nduration_s = 0.001\n', "pushes[0].duration_s",
+     "whole number of physics steps"),
+    ('[[pushes]]\nt = 1.0\nduration_s = 0.101\n', "pushes[0].duration_s",
+     "whole number of physics steps"),
+    ('[[pushes]]\nt = 1.0\nforce = 3.0\n', "pushes[0].force", "t, impulse_ns, duration_s"),
 ])
 def test_bad_files_name_the_file_the_key_and_what_is_allowed(tmp_path, text, key, allowed):
     path = write(tmp_path, text)
@@ -214,3 +232,101 @@ def test_scene_params_vary_the_scene_and_are_recorded(tmp_path):
                           overrides={"scene_params.half_width_m": [1.1, 1.2],
                                      "scene_params.clutter_count": [0, 1]})
     assert again.scene_params == varied.scene_params
+
+
+# -- floors and pushes ------------------------------------------------------------------------
+
+ROUGH_AND_PUSHED = """
+scene = "corridor"
+scene_seed = 2
+duration_s = 4.0
+
+[floor]
+slope_deg = 2.5
+slope_direction_deg = -30
+bump_height_m = 0.004
+
+[[pushes]]
+t = 1.0
+impulse_ns = [0.0, 1.5, 0]
+duration_s = 0.05
+
+[[pushes]]
+t = 2.5
+impulse_ns = [-1.0, 0.0, 0.5]
+"""
+
+
+def test_floor_and_pushes_are_read_checked_and_recorded(tmp_path):
+    from sim.world.scenes import Floor
+
+    scenario = load_scenario(write(tmp_path, ROUGH_AND_PUSHED))
+    assert scenario.floor.floor() == Floor(2.5, -30.0, 0.004)
+    assert [(p.t, p.impulse_ns, p.duration_s) for p in scenario.pushes] == [
+        (1.0, (0.0, 1.5, 0.0), 0.05), (2.5, (-1.0, 0.0, 0.5), 0.1)]
+    document = json.loads(json.dumps(scenario.to_dict()))
+    assert document["floor"] == {"slope_deg": 2.5, "slope_direction_deg": -30.0,
+                                 "bump_height_m": 0.004}
+    assert document["pushes"][1] == {"t": 2.5, "impulse_ns": [-1.0, 0.0, 0.5], "duration_s": 0.1}
+    # A sequence folder's scenario (sequence.json) validates back to the same scenario.
+    stored = {k: v for k, v in document.items() if k != "source"}
+    assert scenario_module.scenario_from_dict(stored) == scenario
+    plain = load_scenario(write(tmp_path, MINIMAL, "plain.toml"))
+    assert plain.floor.floor().is_flat and plain.pushes == ()
+    assert load_scenario(write(tmp_path, MINIMAL, "o.toml"), overrides={
+        "floor.slope_deg": 1.0}).floor.slope_deg == 1.0
+
+
+def test_the_scenario_robot_stands_on_its_floor_with_its_pushes_scheduled(tmp_path):
+    import mujoco
+
+    from sim.harness.runner import scenario_robot
+
+    scenario = load_scenario(write(tmp_path, ROUGH_AND_PUSHED))
+    robot = scenario_robot(scenario)
+    assert robot.model.geom("floor_bumps").type == mujoco.mjtGeom.mjGEOM_HFIELD
+    assert [(p.start_s, p.impulse_ns, p.duration_s) for p in robot.pushes] == [
+        (p.t, p.impulse_ns, p.duration_s) for p in scenario.pushes]
+
+
+def _robot_momentum_after_push(text: str, until_s: float, contacts: bool):
+    """The robot's total linear momentum (N s) at ``until_s`` of the scenario ``text``."""
+    import mujoco
+
+    from sim.harness.runner import scenario_robot
+    from sim.world.humanoid import TORSO_BODY_NAME
+
+    robot = scenario_robot(scenario_module.scenario_from_dict(__import__("tomllib").loads(text)))
+    if not contacts:
+        robot.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    robot.run(until_s)
+    torso = robot.model.body(TORSO_BODY_NAME).id
+    mujoco.mj_subtreeVel(robot.model, robot.data)
+    mass = robot.model.body_subtreemass[torso]
+    return mass * robot.data.subtree_linvel[torso], mass
+
+
+@pytest.mark.parametrize("impulse", [[0.0, 1.5, 0.0], [-1.0, 0.5, 0.8]])
+def test_a_scheduled_push_changes_the_robots_momentum_by_its_impulse(impulse):
+    """Without contacts (the robot falls freely) a push changes the robot's momentum by its
+    impulse against an unpushed twin: it reaches the robot, in the world frame. (To 1e-3 N s:
+    MuJoCo integrates in joint coordinates, where the bodies' momentum is kept only to the
+    integration error, here 2e-4 N s between the two robots' different motions.)"""
+    base = 'scene = "corridor"\nduration_s = 2.0\n'
+    pushed = base + f"[[pushes]]\nt = 0.5\nimpulse_ns = {impulse}\nduration_s = 0.05\n"
+    twin, _ = _robot_momentum_after_push(base, 0.6, contacts=False)
+    momentum, mass = _robot_momentum_after_push(pushed, 0.6, contacts=False)
+    np.testing.assert_allclose(momentum - twin, impulse, atol=1e-3)
+    assert mass == pytest.approx(5.98, abs=0.01)
+
+
+def test_a_push_on_the_standing_robot_moves_it_mostly_by_impulse_over_mass():
+    """On the floor the feet's friction takes part of a sideways push: the centre of mass
+    gains most of impulse / mass along the push (0.25 m/s for 1.5 N s), never more."""
+    base = 'scene = "corridor"\nduration_s = 2.0\n'
+    pushed = base + "[[pushes]]\nt = 0.5\nimpulse_ns = [0.0, 1.5, 0.0]\nduration_s = 0.0025\n"
+    twin, mass = _robot_momentum_after_push(base, 0.51, contacts=True)
+    momentum, _ = _robot_momentum_after_push(pushed, 0.51, contacts=True)
+    gained = (momentum - twin) / mass
+    assert 0.7 * 1.5 / mass < gained[1] <= 1.5 / mass + 1e-9
+    assert abs(gained[0]) < 0.05 * gained[1]

@@ -16,7 +16,9 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from sim.world.scenes import SCENES, SceneParameterError, build_scene  # noqa: E402
+from sim.world.scenes import (SCENES, Floor, FloorParameterError, SceneParameterError,  # noqa: E402
+                              build_scene)
+from sim.world.scenes.floor import START_FLAT_RADIUS_M  # noqa: E402
 from sim.world.scenes.lane import lane_intrusions, polyline  # noqa: E402
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
 from sim.world.sensor.tof_model import TOF_PRESETS  # noqa: E402
@@ -143,7 +145,7 @@ def test_default_parameters_give_the_first_scenes(name):
     scene = build_scene(name, 0)
     assert hashlib.sha1(scene.arena.to_xml_string().encode()).hexdigest() == \
         FIRST_SCENES_SHA1[name]
-    explicit = build_scene(name, 0, **SCENES[name]().params())
+    explicit = build_scene(name, 0, floor=Floor(), **SCENES[name]().params())
     assert explicit.arena.to_xml_string() == scene.arena.to_xml_string()
     assert scene.params == SCENES[name]().params()
 
@@ -211,3 +213,122 @@ def test_bad_parameters_are_refused_naming_scene_parameter_and_accepted(params, 
     assert error.value.scene == "corridor" and error.value.parameter == parameter
     assert "'corridor'" in message and repr(parameter) in message
     assert accepted in message.split("accepted:")[1]
+
+
+# -- floors -----------------------------------------------------------------------------------
+
+#: The hardest floor accepted: 3 degrees, rising towards 60 degrees, 5 mm bumps.
+ROUGH = Floor(slope_deg=3.0, slope_direction_deg=60.0, bump_height_m=0.005)
+
+
+def _floor_hits(model, points_xy, floor):
+    """(x, y, z) where a ray straight down from 5 cm above the sloped floor at each point meets
+    the floor (plane or bumps); points where it meets furniture first are left out."""
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    floor_geoms = {model.geom("floor").id}
+    if "floor_bumps" in [model.geom(g).name for g in range(model.ngeom)]:
+        floor_geoms.add(model.geom("floor_bumps").id)
+    hit = np.zeros(1, np.int32)
+    hits = []
+    for x, y in points_xy:
+        start = np.array([x, y, floor.height([x, y]) + 0.05])
+        distance = mujoco.mj_ray(model, data, start, np.array([0.0, 0.0, -1.0]), None, 1, -1, hit)
+        if hit[0] in floor_geoms:
+            hits.append([x, y, start[2] - distance])
+    return np.array(hits)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_a_rough_floor_has_the_requested_slope_and_bumps(name):
+    """Rays cast down onto the compiled scene: away from the bumps the floor is the plane of
+    the requested slope and direction; over the walk it rises 0 to 5 mm above that plane, as
+    the scene's bump field says, flat where the robot starts."""
+    scene = build_scene(name, 1, floor=ROUGH)
+    model = scene.compile()
+    bumps = scene.bumps
+    rng = np.random.default_rng(0)
+    low, high = bumps.centre_xy - bumps.half_size_xy, bumps.centre_xy + bumps.half_size_xy
+    outside = _floor_hits(model, rng.uniform(low - 1.0, high + 1.0, (400, 2)), ROUGH)
+    outside = outside[np.any((outside[:, :2] < low) | (outside[:, :2] > high), axis=1)]
+    assert len(outside) > 30
+    gradient, *_ = np.linalg.lstsq(np.c_[outside[:, :2], np.ones(len(outside))], outside[:, 2],
+                                   rcond=None)
+    assert math.degrees(math.atan(np.hypot(*gradient[:2]))) == pytest.approx(3.0, abs=1e-3)
+    assert math.degrees(math.atan2(gradient[1], gradient[0])) == pytest.approx(60.0, abs=1e-3)
+    inside = _floor_hits(model, rng.uniform(low, high, (600, 2)), ROUGH)
+    assert len(inside) > 300
+    bump = inside[:, 2] - ROUGH.height(inside[:, :2])
+    assert bump.min() > -0.001 and bump.max() <= 0.005 + 1e-6 and bump.max() > 0.003
+    # Between grid points MuJoCo's triangles differ from the bilinear reference a little.
+    np.testing.assert_allclose(bump, bumps.height_at(inside[:, :2]), atol=3e-4)
+    x, y = bumps.grid_xy()
+    grid = np.stack(np.meshgrid(x, y), axis=-1)
+    assert bumps.heights.max() == 1.0 and bumps.heights.min() == 0.0
+    near_start = np.hypot(*(grid - scene.start_xy).transpose(2, 0, 1)) < START_FLAT_RADIUS_M
+    assert np.all(bumps.heights[near_start] == 0.0)
+
+
+def test_the_building_stands_on_the_sloped_floor_and_keeps_its_layout():
+    flat = build_scene("office", 2)
+    sloped = build_scene("office", 2, floor=Floor(2.0, 135.0))
+    frame = sloped.arena.find("body", "floor_frame")
+    assert [(b.name, tuple(b.pos)) for b in frame.body] == \
+        [(b.name, tuple(b.pos)) for b in flat.arena.worldbody.body]
+    model = sloped.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    standing = [b.name for b in frame.body if b.pos[2] == 0.0]  # all but the ceilings
+    assert len(standing) > 10
+    for name in standing:
+        position = data.xpos[model.body(name).id]
+        assert position[2] == pytest.approx(sloped.floor.height(position[:2]), abs=1e-9)
+    assert sloped.bumps is None and "hfield" not in sloped.arena.to_xml_string()
+
+
+def test_floors_are_reproducible_from_the_seed():
+    first, again = build_scene("corridor", 4, floor=ROUGH), build_scene("corridor", 4, floor=ROUGH)
+    assert first.arena.to_xml_string() == again.arena.to_xml_string()
+    other = build_scene("corridor", 5, floor=ROUGH)
+    assert not np.array_equal(first.bumps.heights, other.bumps.heights)
+    # The bumps come from their own stream of the seed: the layout is the flat scene's.
+    flat = build_scene("corridor", 4)
+    assert [b.name for b in first.arena.find("body", "floor_frame").body] == \
+        [b.name for b in flat.arena.worldbody.body]
+    as_mapping = build_scene("corridor", 4, floor={"slope_deg": 3.0, "slope_direction_deg": 60.0,
+                                                   "bump_height_m": 0.005})
+    assert as_mapping.arena.to_xml_string() == first.arena.to_xml_string()
+
+
+@pytest.mark.parametrize("settings, parameter, accepted", [
+    ({"slope_deg": 3.5}, "slope_deg", "from 0 to 3"),
+    ({"slope_deg": -1.0}, "slope_deg", "from 0 to 3"),
+    ({"bump_height_m": 0.01}, "bump_height_m", "from 0 to 0.005"),
+    ({"bump_height_m": float("nan")}, "bump_height_m", "from 0 to 0.005"),
+    ({"slope_direction_deg": "north"}, "slope_direction_deg", "-360 to 360"),
+    ({"slope_deg": True}, "slope_deg", "from 0 to 3"),
+    ({"slope": 2.0}, "slope", "slope_deg, slope_direction_deg, bump_height_m"),
+])
+def test_bad_floor_settings_are_refused_in_one_line(settings, parameter, accepted):
+    with pytest.raises(FloorParameterError) as error:
+        build_scene("lab", 0, floor=settings)
+    message = str(error.value)
+    assert isinstance(error.value, ValueError) and "\n" not in message
+    assert error.value.parameter == parameter and repr(parameter) in message
+    assert accepted in message.split("accepted:")[1]
+
+
+@pytest.mark.parametrize("direction_deg", [0.0, 90.0])
+def test_the_robot_walks_on_a_3_degree_slope_with_5_mm_bumps(direction_deg):
+    """Physics only: stand 1 s, walk 4 s at 0.1 m/s up (or across) the roughest floor."""
+    from sim.world.assembly import assemble, compile_world
+    from sim.world.walking import RobotSimulation
+
+    scene = build_scene("corridor", 0, floor=Floor(3.0, direction_deg, 0.005))
+    robot = RobotSimulation(compile_world(assemble(scene.arena, scene.start_xy,
+                                                   scene.start_yaw_deg)))
+    robot.run(1.0)
+    robot.command(0.1, 0.0)
+    robot.run(4.0)
+    assert robot.fall is None
+    assert robot.torso_pose()[0][0] > 0.25
