@@ -54,7 +54,9 @@ class VerificationParams:
             (within 2 degrees and 4 px of the truth) lie within them 99.9% of the time.
         null_margin: the frames did not move, as far as the check can tell, when the
             uncompensated current frame correlates with the reference no more than this below
-            the optimum. Default 0.05.
+            the optimum. Default 0.01: with 0.05, the long, straight edges of a corridor
+            seen down its length correlated that well after accurate 1-2 px motions, and the
+            check failed a third of those walking frames (docs/method.md, section 11).
         still_deg, still_px: on frames that did not move, the largest angle and translation an
             ``"ok"`` estimate may have. Defaults 1 degree and 1 px.
         sigma_px: Gaussian scale (pixels) of the edge image; it sets the misalignment the check
@@ -77,7 +79,7 @@ class VerificationParams:
     min_overlap: float = 0.25
     max_offset_deg: float = 3.0
     max_offset_px: float = 5.0
-    null_margin: float = 0.05
+    null_margin: float = 0.01
     still_deg: float = 1.0
     still_px: float = 1.0
     sigma_px: float = 2.0
