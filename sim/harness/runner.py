@@ -451,6 +451,7 @@ class Scoring:
         self.status, self.message = COMPLETE, ""
         self.recorder = None
         self.world_model = world_model  # the recording's 3-D scene; None for a sequence
+        self.plot_pool = None  # a process pool that draws the final plots (score --workers)
         self.wall_start = math.nan
 
     def start(self) -> None:
@@ -512,7 +513,9 @@ class Scoring:
             self.out_dir, scenario=self.scenario_dict, records=self.records,
             summary=summarize(self.records, self.itf), meta=self.meta,
             status=self.status if final else INCOMPLETE, plots=final,
-            recording=self.recording_path if final else None)
+            recording=self.recording_path if final else None,
+            # An interrupted run's pool may still hold estimation work: plots drawn here then.
+            plot_pool=self.plot_pool if self.status in (COMPLETE, FELL) else None)
         return files.metrics
 
     def finish(self, sim_time_s: float, estimations: Mapping[str, Any]) -> dict:

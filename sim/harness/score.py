@@ -89,6 +89,7 @@ def score(config: ScoreConfig) -> dict:
     with _method_estimations(sequence, methods, config.workers,
                              keep_images=scoring.recording_path is not None) as estimations:
         pool = next((e.pool for e in estimations.values() if isinstance(e, _PooledMethod)), None)
+        scoring.plot_pool = pool.pool if pool else None
         return score_frames(SequenceFrames(sequence, truths=pool.truth if pool else None), scoring,
                             {**estimations, **file_methods}, config.progress)
 

@@ -72,6 +72,14 @@ def test_two_workers_give_the_figures_of_one(folders):
     _same_summary(_summary(folders / "w1"), _summary(folders / "w2"))
 
 
+def test_the_workers_draw_every_plot_of_the_run(folders):
+    # With workers, the per-method plots are drawn in the pool: the same files as in-process.
+    plots = sorted(path.name for path in (folders / "w1").glob("*.png"))
+    assert plots == sorted(path.name for path in (folders / "w2").glob("*.png"))
+    assert len(plots) == len(METHODS) + 1
+    assert all((folders / "w2" / name).stat().st_size > 10_000 for name in plots)
+
+
 def test_chunks_are_cut_only_where_the_reference_changes():
     references = [0] * 5 + [5] * 4 + [9] * 6
     chunks = reference_chunks(references, 3)
