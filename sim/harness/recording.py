@@ -152,7 +152,8 @@ def geom_archetypes(model: mujoco.MjModel, geoms: np.ndarray, positions: np.ndar
     as a thin box under it; sphere radius; ellipsoid semi-axes; cylinder and capsule radius and
     half length along the geom's z, the capsule's caps beyond it (rerun puts a capsule's
     translation at one cap centre, a cylinder's centre at its centre); mesh vertices in the
-    geom frame. Height fields and SDFs are not drawn.
+    geom frame; height fields as a triangle mesh of their grid (:func:`heightfield_mesh`). SDFs
+    are not drawn.
     """
     geoms = np.asarray(geoms, dtype=int)
     rotations = Rotation.from_quat(np.asarray(quaternions_wxyz, dtype=np.float64).reshape(-1, 4),
@@ -206,7 +207,32 @@ def geom_archetypes(model: mujoco.MjModel, geoms: np.ndarray, positions: np.ndar
         archetypes[f"mesh_{geoms[index]}"] = rr.Mesh3D(
             vertex_positions=vertices @ axes[index].T + positions[index],
             triangle_indices=faces, albedo_factor=colours[index])
+    for index in np.flatnonzero(kinds == mujoco.mjtGeom.mjGEOM_HFIELD):
+        vertices, triangles = heightfield_mesh(model, model.geom_dataid[geoms[index]])
+        archetypes[f"heightfield_{geoms[index]}"] = rr.Mesh3D(
+            vertex_positions=vertices @ axes[index].T + positions[index],
+            triangle_indices=triangles, albedo_factor=colours[index])
     return archetypes
+
+
+def heightfield_mesh(model: mujoco.MjModel, hfield: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (in the geom's frame) and triangles of height field ``hfield``.
+
+    MuJoCo's convention (``hfield_size`` = radius x, radius y, elevation z, base z): the
+    ``nrow x ncol`` grid spans [-radius, radius] in x (columns) and y (rows, first row at -y),
+    and a sample h in [0, 1] stands at z = h * elevation; the base below is not drawn.
+    """
+    rows, cols = int(model.hfield_nrow[hfield]), int(model.hfield_ncol[hfield])
+    radius_x, radius_y, elevation, _ = model.hfield_size[hfield]
+    start = model.hfield_adr[hfield]
+    heights = model.hfield_data[start:start + rows * cols].reshape(rows, cols)
+    y, x = np.meshgrid(np.linspace(-radius_y, radius_y, rows),
+                       np.linspace(-radius_x, radius_x, cols), indexing="ij")
+    vertices = np.stack([x, y, heights * elevation], axis=-1).reshape(-1, 3)
+    corner = (np.arange(rows - 1)[:, None] * cols + np.arange(cols - 1)[None, :]).ravel()
+    triangles = np.concatenate([np.stack([corner, corner + 1, corner + cols + 1], axis=1),
+                                np.stack([corner, corner + cols + 1, corner + cols], axis=1)])
+    return vertices, triangles.astype(np.uint32)
 
 
 def world_geoms(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

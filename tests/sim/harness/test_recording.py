@@ -400,3 +400,24 @@ def test_a_run_records_its_scene_and_the_walking_robot(tmp_path):
     path_strips = _column(path, "/world/robot_path", "LineStrips3D:strips")
     assert np.allclose(torso[-1], path_strips[-1][0][-1], atol=1e-6)
     assert 0.2 < torso[-1, 2] < 0.5  # standing height of the torso
+
+
+def test_a_heightfield_is_drawn_where_mujoco_has_its_surface():
+    import mujoco
+
+    from sim.harness.recording import heightfield_mesh
+
+    # An asymmetric field on a moved geom: every grid vertex must lie on MuJoCo's surface.
+    model = mujoco.MjModel.from_xml_string("""<mujoco><asset>
+      <hfield name="bumps" nrow="3" ncol="4" size="1.5 1.0 0.2 0.05"
+              elevation="0 0.1 0.2 0.3  0.4 0.5 0.6 0.7  0.8 0.9 1.0 0.5"/></asset>
+      <worldbody><geom type="hfield" hfield="bumps" pos="0.3 -0.2 0.1"/></worldbody></mujoco>""")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    vertices, triangles = heightfield_mesh(model, 0)
+    assert vertices.shape == (12, 3) and triangles.shape == (2 * 2 * 3, 3)
+    hit = np.zeros(1, np.int32)
+    for vertex in vertices + data.geom_xpos[0]:
+        distance = mujoco.mj_ray(model, data, np.array([vertex[0], vertex[1], 5.0]),
+                                 np.array([0.0, 0.0, -1.0]), None, 1, -1, hit)
+        assert abs(5.0 - distance - vertex[2]) < 1e-9
