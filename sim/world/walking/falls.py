@@ -25,11 +25,14 @@ class FallDetector:
 
     Args:
         model: a world built by sim.world.assembly.assemble.
-        min_torso_height_m: the torso origin below this height is a fall (standing: ~0.33 m).
+        min_torso_height_m: the torso origin less than this above the lower foot's origin is
+            a fall (standing: ~0.30 m; the foot's origin is 0.035 m above its sole, so the
+            default is 0.2 m above a flat floor). Measured from the feet, not from z = 0, so a
+            walk down a sloped floor is not taken for a fall.
         max_tilt_deg: the torso's z axis further than this from vertical is a fall.
     """
 
-    def __init__(self, model: mujoco.MjModel, min_torso_height_m: float = 0.2,
+    def __init__(self, model: mujoco.MjModel, min_torso_height_m: float = 0.165,
                  max_tilt_deg: float = 45.0):
         self.min_torso_height_m = min_torso_height_m
         self.min_cos_tilt = math.cos(math.radians(max_tilt_deg))
@@ -49,8 +52,8 @@ class FallDetector:
 
     def check(self, data: mujoco.MjData) -> FallEvent | None:
         """A FallEvent if the robot is down now, else None."""
-        torso_z = data.xpos[self._torso_id, 2]
-        if torso_z < self.min_torso_height_m:
+        torso_height = data.xpos[self._torso_id, 2] - data.xpos[self._foot_body, 2].min()
+        if torso_height < self.min_torso_height_m:
             return FallEvent(float(data.time), "torso_low")
         if data.xmat[self._torso_id, 8] < self.min_cos_tilt:
             return FallEvent(float(data.time), "torso_tilt")

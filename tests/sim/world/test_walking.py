@@ -246,3 +246,17 @@ def test_planner_turns_in_place_and_stops_feet_side_by_side():
     assert left.yaw > math.radians(40.0)
     assert math.hypot(left.x - right.x, left.y - right.y) == pytest.approx(0.09)
     assert math.hypot((left.x + right.x) / 2, (left.y + right.y) / 2) < 1e-9
+
+
+def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
+    # Down a sloped floor the robot stands below z = 0: its height counts from its feet.
+    from sim.world.walking.falls import FallDetector
+
+    sim = RobotSimulation(compile_world(assemble()))
+    model, data = sim.model, mujoco.MjData(sim.model)
+    data.qpos[:] = sim.data.qpos
+    data.qpos[free_joint_qpos_address(model) + 2] -= 1.0
+    mujoco.mj_kinematics(model, data)
+    assert FallDetector(model).check(data) is None
+    crouched = FallDetector(model, min_torso_height_m=0.35)  # above the standing height
+    assert crouched.check(data).reason == "torso_low"
