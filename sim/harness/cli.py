@@ -199,6 +199,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                                "ray" if args.ray else "local", args.workers, args.ray_address)
 
 
+def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
+    """The options of the commands that simulate a scenario (run, record)."""
+    parser.add_argument("--out", type=Path, default=None, help=out_help)
+    parser.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    parser.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="egostab", description=__doc__.split("\n\n")[0],
@@ -213,12 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="comma-separated methods (built-in, entry point or "
                           "package.module:Name; see `egostab methods`), or 'all' for the "
                           "built-in ones (default: the scenario's)")
-    run.add_argument("--out", type=Path, default=None,
-                     help="run folder (default: results/<scenario>)")
+    _add_simulation_arguments(run, "run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
-    run.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
-    run.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(handler=_cmd_run)
 
     recorder = commands.add_parser(
@@ -226,11 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "(docs/sequence-format.md)")
     recorder.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
                           help=f"scenario name or TOML path (default: {DEFAULT_SCENARIO})")
-    recorder.add_argument("--out", type=Path, default=None,
-                          help="sequence folder (default: sequences/<scenario>)")
-    recorder.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
-    recorder.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    recorder.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_simulation_arguments(recorder, "sequence folder (default: sequences/<scenario>)")
     recorder.set_defaults(handler=_cmd_record)
 
     scorer = commands.add_parser(

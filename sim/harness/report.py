@@ -303,10 +303,6 @@ def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> P
     return save_figure(figure, path)
 
 
-def _plot_estimates_job(job: tuple[Path, Sequence[FrameRecord], str]) -> Path:
-    return plot_estimates(*job)
-
-
 #: Narrowest range a histogram spans: equal errors (an estimates file with a constant offset)
 #: would otherwise ask numpy for more bins than floats exist in their range.
 MIN_HISTOGRAM_RANGE = 1e-3
@@ -383,10 +379,10 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
     if plots:
         jobs = [(path, [record for record in records if record.method == method], method)
                 for method, path in zip(summary.methods, plot_paths)]
-        drawn = plot_pool.map_async(_plot_estimates_job, jobs) if plot_pool else None
+        drawn = plot_pool.starmap_async(plot_estimates, jobs) if plot_pool else None
         if drawn is None:
             for job in jobs:
-                _plot_estimates_job(job)
+                plot_estimates(*job)
         plot_error_histograms(plot_paths[-1], records, summary.methods)
         if drawn is not None:
             drawn.get()

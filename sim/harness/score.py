@@ -87,10 +87,9 @@ def score(config: ScoreConfig) -> dict:
                                           for name, path in config.estimates.items()},
                             "workers": config.workers})
     with _method_estimations(sequence, methods, config.workers,
-                             keep_images=scoring.recording_path is not None) as estimations:
-        pool = next((e.pool for e in estimations.values() if isinstance(e, _PooledMethod)), None)
-        scoring.plot_pool = pool.pool if pool else None
-        return score_frames(SequenceFrames(sequence, truths=pool.truth if pool else None), scoring,
+                             keep_images=scoring.recording_path is not None) as (estimations, pool):
+        scoring.plot_pool = pool and pool.processes
+        return score_frames(SequenceFrames(sequence, truths=pool and pool.truth), scoring,
                             {**estimations, **file_methods}, config.progress)
 
 
@@ -233,19 +232,19 @@ def parse_estimates_argument(text: str) -> tuple[str, str]:
 
 @contextmanager
 def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
-                        keep_images: bool) -> Iterator[dict]:
-    """Each method's estimation: in this process, or in a pool of ``workers`` processes
-    (whose estimates come back without their diagnostic images unless ``keep_images``: a
-    recording shows them, nothing else reads them, and pickling them costs more than the
-    estimates)."""
+                        keep_images: bool) -> Iterator[tuple[dict, Any]]:
+    """Each method's estimation and the pool behind them (None): in this process, or in a
+    pool of ``workers`` processes (whose estimates come back without their diagnostic images
+    unless ``keep_images``: a recording shows them, nothing else reads them, and pickling them
+    costs more than the estimates)."""
     from sim.harness.runner import MethodEstimation
 
     if workers == 1 or not methods:
-        yield {method: MethodEstimation(method) for method in methods}
+        yield {method: MethodEstimation(method) for method in methods}, None
         return
     pool = _EstimationPool(sequence, methods, workers, keep_images)
     try:
-        yield {method: _PooledMethod(pool, method) for method in methods}
+        yield {method: _PooledMethod(pool, method) for method in methods}, pool
     finally:
         pool.close()
 
@@ -332,9 +331,9 @@ class _EstimationPool:
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
         with single_thread_environment():
-            self.pool = multiprocessing.get_context("spawn").Pool(
+            self.processes = multiprocessing.get_context("spawn").Pool(
                 min(workers, len(tasks)), initializer=_init_worker)
-        self.results = self.pool.imap(_estimate_chunk, tasks)
+        self.results = self.processes.imap(_estimate_chunk, tasks)
         self.ready: dict[tuple[str, int], Any] = {}
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
 
@@ -356,8 +355,8 @@ class _EstimationPool:
         return self.ready.pop((method, index))
 
     def close(self) -> None:
-        self.pool.terminate()
-        self.pool.join()
+        self.processes.terminate()
+        self.processes.join()
 
 
 class _PooledMethod:
