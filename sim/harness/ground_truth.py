@@ -149,7 +149,7 @@ class GroundTruth:
 
 
 @lru_cache(maxsize=8)
-def _pixel_rays(intrinsics: CameraIntrinsics, stride: int):
+def pixel_rays(intrinsics: CameraIntrinsics, stride: int):
     """Sampled pixel indices and their camera-frame rays per metre of planar depth."""
     rows, cols = np.mgrid[0:intrinsics.height:stride, 0:intrinsics.width:stride]
     rows, cols = rows.ravel(), cols.ravel()
@@ -224,7 +224,7 @@ def ground_truth(reference: Frame, current: Frame,
     _check_frames(reference, current, intrinsics, stride, (reference_depth_m, current_depth_m))
     if not max_depth_m > 0:
         raise ValueError(f"max_depth_m must be a positive depth in metres; got {max_depth_m!r}")
-    rows, cols, rays = _pixel_rays(intrinsics, int(stride))
+    rows, cols, rays = pixel_rays(intrinsics, int(stride))
     depth, usable = _sample_depth(reference, reference_depth_m, rows, cols, max_depth_m)
     points = rays[usable] * depth[usable, None]
 

@@ -50,7 +50,7 @@ from scipy.spatial.transform import Rotation
 
 from sim.harness.atomic import atomic_path
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
-from sim.harness.ground_truth import GroundTruth
+from sim.harness.ground_truth import GroundTruth, pixel_rays
 from sim.harness.provenance import provenance
 from sim.harness.scoring import AXES, AXIS_UNITS
 from stabilizer.motion import Motion
@@ -279,14 +279,13 @@ def body_entity(model: mujoco.MjModel, body: int) -> str:
 def depth_points_world(frame: Frame, intrinsics: CameraIntrinsics,
                        stride: int = POINT_CLOUD_STRIDE) -> np.ndarray:
     """The frame's valid depth pixels (every ``stride``-th in x and y) as world points (n x 3,
-    float32): pixel (u, v) at planar depth d is d * ((u - cx) / fx, -(v - cy) / fy, -1) in
-    MuJoCo's camera frame (x right, y up, looking along -z), then cam_mat, cam_pos."""
-    rows, cols = np.mgrid[0:intrinsics.height:stride, 0:intrinsics.width:stride]
+    float32): each pixel's ray per metre of planar depth (the ground truth's
+    :func:`~sim.harness.ground_truth.pixel_rays`, MuJoCo's camera frame) times its depth, then
+    cam_mat, cam_pos."""
+    rows, cols, rays = pixel_rays(intrinsics, stride)
     depth = np.asarray(frame.depth_m, dtype=np.float64)[rows, cols]
     keep = np.asarray(frame.valid)[rows, cols] & (depth > 0) & np.isfinite(depth)
-    depth, rows, cols = depth[keep], rows[keep], cols[keep]
-    camera = np.stack([depth * (cols - intrinsics.cx) / intrinsics.fx,
-                       -depth * (rows - intrinsics.cy) / intrinsics.fy, -depth], axis=1)
+    camera = rays[keep] * depth[keep, None]
     world = camera @ np.asarray(frame.cam_mat, dtype=np.float64).T + np.asarray(frame.cam_pos)
     return world.astype(np.float32)
 
