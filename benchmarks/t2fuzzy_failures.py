@@ -4,6 +4,7 @@ Three steps (docs/method.md, section 12, shows their output):
 
     python benchmarks/t2fuzzy_failures.py record  --out /tmp/t2f/seq     # 24 sequences
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
+    python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
@@ -98,21 +99,53 @@ def _frames(folder: Path):
     return frames, references, truth, truth_ok
 
 
-def _estimates(frames, references, method, verify, **params):
-    """One Motion per frame, each against its reference; and the seconds spent."""
+def _estimates(frames, references, method, verify, stride=1, clock=time.perf_counter,
+               **params):
+    """One Motion for every ``stride``-th frame, each against its reference; and the seconds
+    spent (on ``clock``)."""
     from stabilizer import Stabilizer
     from stabilizer.verification import VerificationParams
 
     verification = VerificationParams() if verify else None
     motions, seconds, tracker, current = [], 0.0, None, None
-    for index, frame in enumerate(frames):
-        start = time.perf_counter()
+    for index in range(0, len(frames), stride):
+        start = clock()
         if references[index] != current:
             current = references[index]
             tracker = Stabilizer(frames[current], method, verification=verification, **params)
-        motions.append(tracker.estimate(frame))
-        seconds += time.perf_counter() - start
+        motions.append(tracker.estimate(frames[index]))
+        seconds += clock() - start
     return motions, seconds
+
+
+def _status_name(motion) -> str:
+    """The status, with the trust check's reason for ``"unverified"``."""
+    reason = motion.diagnostics.get("verify_failed") if motion.status == "unverified" else None
+    return f"{motion.status}: {reason}" if reason else motion.status
+
+
+def summary(folders: list[Path], methods: list[str], stride: int) -> None:
+    """One line per method over every sequence, through the trust check: the mean over the
+    sequences of the ok frames' mean errors and of the failure rates, the ok frames off by more
+    than 5 deg or 10 px, the process CPU ms per frame, and the count of each status."""
+    from collections import Counter
+
+    loaded = [_frames(folder) for folder in folders]
+    for method in methods:
+        rows, statuses, seconds, n_frames = [], Counter(), 0.0, 0
+        for frames, references, truth, truth_ok in loaded:
+            motions, spent = _estimates(frames, references, method, True, stride,
+                                        time.process_time)
+            seconds, n_frames = seconds + spent, n_frames + len(motions)
+            statuses.update(_status_name(m) for m in motions if m.status != "ok")
+            rows.append(_summary(motions, truth[::stride], truth_ok[::stride]))
+        mean = np.mean([row["mean"] for row in rows], axis=0)
+        print(f"{method}: rotation / x / y {mean[0]:.3f} / {mean[1]:.3f} / {mean[2]:.3f}, "
+              f"ok > 5 deg or 10 px {sum(row['large'] for row in rows)}, failures "
+              f"{100 * np.mean([row['failures'] for row in rows]):.1f}%, "
+              f"{1e3 * seconds / n_frames:.2f} ms/frame (CPU), {n_frames} frames of "
+              f"{len(folders)} sequences")
+        print("   " + ", ".join(f"{name} {count}" for name, count in statuses.most_common()))
 
 
 def _summary(motions, truth, truth_ok) -> dict:
@@ -261,6 +294,10 @@ def main(argv: list[str] | None = None) -> int:
     recorder.add_argument("--seeds", type=int, nargs="+", default=list(TUNING_SCENE_SEEDS))
     scorer = commands.add_parser("table", help="before / after / ECC per sequence")
     scorer.add_argument("folders", type=Path, nargs="+")
+    overall = commands.add_parser("summary", help="one line per method, through the check")
+    overall.add_argument("folders", type=Path, nargs="+")
+    overall.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
+    overall.add_argument("--stride", type=int, default=2, help="score every n-th frame")
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
     isolated.add_argument("folders", type=Path, nargs="+")
     drawer = commands.add_parser("figures", help="the failing frames of docs/method.md")
@@ -272,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
         record(args.out, args.seeds)
     elif args.command == "table":
         table(sorted(args.folders))
+    elif args.command == "summary":
+        summary(sorted(args.folders), args.methods, args.stride)
     elif args.command == "stage6":
         stage6(sorted(args.folders))
     else:

@@ -8,8 +8,9 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
 - Rotation search (:class:`RotationSearch`): the FNCC of stage 6 also scores rotations. The
   candidates are the thresholded rotation of stage 5, the means of the largest groups of angle
   estimates, and 0; the best-correlating one at half resolution is climbed in steps of
-  ``search_step_deg`` to the local maximum of the correlation peak, first at half and then at
-  full resolution, and the vertex of a parabola through the last three steps is the rotation.
+  ``search_step_deg`` to the local maximum of the correlation peak, first at half resolution,
+  then on the largest template the shift allows (``large_template_border_px``) or at full
+  resolution, and the vertex of a parabola through the last three steps is the rotation.
   The ellipse angles then choose where the search starts rather than give the rotation.
 - Common-disc comparison (:func:`common_disc`): stages 3-6 are run on one disc of the scene that
   both frames see whole under a first estimate of the motion, so that an object cut by the image
@@ -357,39 +358,44 @@ class RotationSearch:
             if spectra is not None:  # the shift of the whole overlap at this rotation
                 return angle, self.wide.match(spectra, angle), converged
             centre = self.template.match(image, angle)  # search the whole range once
-        angle, match, fine_converged = self._climb(self.template, image, angle, centre)
         if self.large_border > 0:
-            angle, match = self.refine_on_large_template(half, image, angle, match)
+            refined = self.refine_on_large_template(half, image, angle, centre)
+            if refined is not None:
+                return (*refined, converged)
+        angle, match, fine_converged = self._climb(self.template, image, angle, centre)
         return angle, match, converged and fine_converged
 
     def refine_on_large_template(self, half: np.ndarray, image: np.ndarray, angle: float,
-                                 match: TemplateMatch) -> tuple[float, TemplateMatch]:
-        """The rotation climbed again at half resolution, and the shift at it, on the largest
-        central template that stays in the current frame near the shift of ``match``.
+                                 match: TemplateMatch) -> tuple[float, TemplateMatch] | None:
+        """The rotation climbed at half resolution, and the shift at it at full resolution, on
+        the largest central template that stays in the current frame near the shift of
+        ``match``; None when no larger template fits or its climb is not kept.
 
         The ``max_shift_px`` template must fit every shift of the search range; once the shift
         is known, a template ``max(|dx|, |dy|)`` + ``large_template_border_px`` in from every
         side fits it, and its pixels, farther from the centre of rotation, move more under a
-        rotation. The climb's result is kept only if it ends at a local maximum within two
-        steps of ``angle``; the shift is the large template's at full resolution (the
-        ``max_shift_px`` template's if the large one's peak is on the edge of its search).
+        rotation: it fixes the rotation better, so the search's last climb is on it (the
+        ``max_shift_px`` template is climbed at full resolution only when it is not kept). The
+        climb's result is kept only if it ends at a local maximum within two steps of
+        ``angle``; the shift is the large template's at full resolution (the ``max_shift_px``
+        template's if the large one's peak is on the edge of its search).
         """
         # Margins in steps of LARGE_MARGIN_STEP_PX: a few templates serve a reference's frames.
         reach = LARGE_MARGIN_STEP_PX * math.ceil((max(abs(match.x), abs(match.y))
                                                   + self.large_border) / LARGE_MARGIN_STEP_PX)
         if not reach < self.template.margin:  # no larger template fits
-            return angle, match
+            return None
         half_template = self._large_template(reach // 2, True)
         start = half_template.match(half, angle, (match.x / 2.0, match.y / 2.0))
         climbed, _, converged = self._climb(half_template, half, angle, start)
         if not (converged and abs(climbed - angle) < 2.0 * self.step):
-            return angle, match
+            return None
         near = (match.x, match.y)
         for template in (self._large_template(reach, False), self.template):
             found = template.match(image, climbed, near)
             if not found.at_border:
                 return climbed, found
-        return angle, match
+        return None
 
     def _large_template(self, margin: int, half: bool) -> RotatedTemplate:
         """The central template ``margin`` pixels (of its resolution) in from every side."""

@@ -175,8 +175,9 @@ def test_the_large_template_refines_the_rotation_and_the_shift():
     start = search.template.match(image, 6.0, (truth.dx, truth.dy))
     angle, match = search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, start)
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.4)
-    # A shift that leaves no template larger than the search's own: nothing changes.
+    # A shift that leaves no template larger than the search's own: no refinement (the search
+    # then climbs the search's own template).
     far = search.template.match(image, 6.0, (40.0, 0.0))
     far = type(far)(40.0, far.y, far.peak, far.at_border, far.height)
-    assert search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, far) == (6.0, far)
+    assert search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, far) is None
     assert Refinements.off().large_template_border_px == 0
