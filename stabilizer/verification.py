@@ -65,7 +65,8 @@ class VerificationParams:
             +- this many times their median magnitude, so that a few strong depth steps (near
             objects: disparity grows as 1 / depth) do not outweigh all the others. Default 5.
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
-            when a step changes the warp by less than 1e-3). Default 10.
+            when an iteration changes ECC's correlation coefficient by less than 1e-3, the
+            termination epsilon of ``cv2.findTransformECC``). Default 10.
         convincing_correlation: below this optimum correlation the check also looks for a
             better explanation away from the estimate (:meth:`Verifier.candidate`). Default 0.7:
             the median accurate walking estimate's optimum scores about 0.68.
@@ -135,10 +136,12 @@ def edge_image(image: np.ndarray, sigma_px: float,
         1 where the response is measured, else 0.
     """
     valid = (image > 0).view(np.uint8)
-    size = 2 * math.ceil(3 * sigma_px) + 1  # the Gaussian to 3 sigma
-    smoothed = cv2.GaussianBlur(image.astype(np.float32), (size, size), sigma_px)
+    # The Gaussian to 3 sigma, filtered straight from uint8 to float32 (cv2.GaussianBlur's
+    # kernel and border, without a float copy of the frame first).
+    gaussian = cv2.getGaussianKernel(2 * math.ceil(3 * sigma_px) + 1, sigma_px, cv2.CV_32F)
+    smoothed = cv2.sepFilter2D(image, cv2.CV_32F, gaussian, gaussian)
     if cv2.countNonZero(valid) < valid.size:  # normalised convolution: divide by the weight
-        weight = cv2.GaussianBlur(valid.astype(np.float32), (size, size), sigma_px)
+        weight = cv2.sepFilter2D(valid, cv2.CV_32F, gaussian, gaussian)
         smoothed = cv2.divide(smoothed, cv2.max(weight, 1e-3))
     laplacian = cv2.Laplacian(smoothed, cv2.CV_32F, ksize=3)
     radius = max(1, math.ceil(1.5 * sigma_px))
@@ -147,10 +150,20 @@ def edge_image(image: np.ndarray, sigma_px: float,
     laplacian *= measured
     # A robust scale of the responses: their median over every other row and column.
     responses = np.abs(laplacian[::2, ::2][measured[::2, ::2].view(bool)])
-    scale = clip_factor * float(np.median(responses)) if responses.size else 0.0
+    scale = clip_factor * _median(responses) if responses.size else 0.0
     limit = max(scale, MIN_CLIP)
-    edges = np.clip(laplacian, -limit, limit)
-    return edges, measured
+    return np.clip(laplacian, -limit, limit, out=laplacian), measured
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a 1-D float32 array, the same value at a quarter of its cost (it
+    partitions in place)."""
+    middle = values.size // 2
+    if values.size % 2:
+        values.partition(middle)
+        return float(values[middle])
+    values.partition((middle - 1, middle))
+    return float((values[middle - 1] + values[middle]) / np.float32(2))
 
 
 def structure_correlation(reference_edges: np.ndarray, reference_measured: np.ndarray,
@@ -216,9 +229,9 @@ class Verifier:
        some edges is not at the optimum);
     4. when the optimum is not convincing (correlation below ``convincing_correlation``) or the
        estimate turns beyond the searched angles, the best motion of a search independent of
-       the estimate (:meth:`candidate`, climbed to its own optimum) does not explain the frames
-       better from beyond the offset limits (:meth:`_better_candidate`): the estimate is not on
-       a false peak;
+       the estimate (:meth:`candidate`, climbed to its own optimum unless it lies within the
+       offset limits of the estimate's optimum) does not explain the frames better from beyond
+       the offset limits (:meth:`_better_candidate`): the estimate is not on a false peak;
     5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
@@ -243,12 +256,19 @@ class Verifier:
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
         self._padded_shape = tuple(even_dft_size(n) for n in half.shape)
         self._reference_windowed = self._windowed(half)
+        # The search's turn-backs depend on the frame size alone: made once per reference.
+        centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
+        self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
+                             rotation_matrix(math.radians(angle)))
+                            for angle in params.candidate_angles_deg]
 
-    def _windowed(self, half: np.ndarray) -> np.ndarray:
+    def _windowed(self, half: np.ndarray, padded: np.ndarray | None = None) -> np.ndarray:
         """A half-resolution edge image times the Hanning window, zero-padded to even DFT sizes
-        (an odd size biases ``cv2.phaseCorrelate``; stabilizer.peers.preparation.even_dft_size)."""
-        padded = np.zeros(self._padded_shape, np.float32)
-        padded[:half.shape[0], :half.shape[1]] = half * self._window
+        (an odd size biases ``cv2.phaseCorrelate``; stabilizer.peers.preparation.even_dft_size).
+        ``padded``: a zero-padded array of that size to fill in place (its padding stays 0)."""
+        if padded is None:
+            padded = np.zeros(self._padded_shape, np.float32)
+        np.multiply(half, self._window, out=padded[:half.shape[0], :half.shape[1]])
         return padded
 
     def candidate(self, current_half: tuple[np.ndarray, np.ndarray]) -> Motion:
@@ -261,15 +281,14 @@ class Verifier:
         stabilizer.peers.start_search. The angle with the sharpest peak wins.
         """
         half, _ = current_half
-        centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
+        padded = np.zeros(self._padded_shape, np.float32)
         best_response, best = -math.inf, Motion(0.0, 0.0, 0.0)
-        for angle in self.params.candidate_angles_deg:
-            turn_back = cv2.getRotationMatrix2D(centre, -angle, 1.0)
+        for angle, turn_back, turn in self._turn_backs:
             derotated = cv2.warpAffine(half, turn_back, half.shape[::-1], flags=cv2.INTER_LINEAR)
             shift_half, response = cv2.phaseCorrelate(self._reference_windowed,
-                                                      self._windowed(derotated))
+                                                      self._windowed(derotated, padded))
             if response > best_response:
-                shift = rotation_matrix(math.radians(angle)) @ (2.0 * np.asarray(shift_half))
+                shift = turn @ (2.0 * np.asarray(shift_half))
                 best_response, best = response, Motion(angle, float(shift[0]), float(shift[1]))
         return best
 
@@ -345,7 +364,7 @@ class Verifier:
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px) else None)
         if failed is None:  # the search costs most of the check: only for what passed so far
-            better = self._better_candidate(current_edges, current_half, motion,
+            better = self._better_candidate(current_edges, current_half, motion, optimum,
                                             optimum_correlation)
             if better is not None:
                 failed = "better_candidate"
@@ -362,17 +381,26 @@ class Verifier:
 
     def _better_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
                           current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
-                          optimum_correlation: float) -> tuple[Motion, float] | None:
+                          optimum: Motion, optimum_correlation: float
+                          ) -> tuple[Motion, float] | None:
         """A motion away from ``motion`` that explains the frames better, or None.
 
-        Searched when the optimum near the estimate is not convincing (its correlation below
-        ``convincing_correlation``) or the estimate turns by more than the search's angles
-        (plus ``max_offset_deg``). The :meth:`candidate`, climbed to its :meth:`local_optimum`,
-        wins when it lies beyond the offset limits of the estimate and correlates more than
-        ``candidate_margin`` better than the estimate's optimum; against an estimate outside
-        the searched angles, when it correlates no more than ``candidate_margin`` worse: a turn
-        beyond the walking range must explain the frames clearly better than one within it (a
-        half turn can line up a point-symmetric object, say a box, as well as the truth).
+        Searched when the optimum near the estimate (``optimum``, within the offset limits of
+        ``motion``) is not convincing (its correlation below ``convincing_correlation``) or the
+        estimate turns by more than the search's angles (plus ``max_offset_deg``). The
+        :meth:`candidate`, climbed to its :meth:`local_optimum`, wins when it lies beyond the
+        offset limits of the estimate and correlates more than ``candidate_margin`` better than
+        the estimate's optimum; against an estimate outside the searched angles, when it
+        correlates no more than ``candidate_margin`` worse: a turn beyond the walking range must
+        explain the frames clearly better than one within it (a half turn can line up a
+        point-symmetric object, say a box, as well as the truth).
+
+        A candidate within the offset limits of ``optimum`` agrees with the estimate and is not
+        climbed: the climb from there ends at that optimum (of 393 such candidates on the walking
+        frames of docs/method.md, section 11, "Cost", climbed anyway, one ended beyond the offset
+        limits of the estimate and none correlated better than its optimum). Nor is the
+        correlation of a refined candidate within the offset limits of the estimate measured: it
+        cannot fail the estimate.
         """
         params = self.params
         widest = max(abs(angle) for angle in params.candidate_angles_deg)
@@ -380,15 +408,23 @@ class Verifier:
         if optimum_correlation >= params.convincing_correlation and not outside:
             return None
         candidate = self.candidate(current_half)
+        if not self._beyond_offset(candidate, optimum):
+            return None
         refined = self.local_optimum(current_half, candidate) or candidate
+        if not self._beyond_offset(refined, motion):
+            return None
         correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
-        far = (abs(float(wrap_angle_deg(refined.angle_deg - motion.angle_deg)))
-               > params.max_offset_deg
-               or math.hypot(refined.dx - motion.dx, refined.dy - motion.dy) > params.max_offset_px)
         margin = -params.candidate_margin if outside else params.candidate_margin
-        if far and correlation > optimum_correlation + margin:
+        if correlation > optimum_correlation + margin:
             return refined, correlation
         return None
+
+    def _beyond_offset(self, motion: Motion, other: Motion) -> bool:
+        """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
+        return (abs(float(wrap_angle_deg(motion.angle_deg - other.angle_deg)))
+                > self.params.max_offset_deg
+                or math.hypot(motion.dx - other.dx, motion.dy - other.dy)
+                > self.params.max_offset_px)
 
 
 def _half_resolution(edges: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
