@@ -23,9 +23,9 @@ file stays well under ~90 s on one core.
 
 "ok" is trustworthy, for every method, over seeded random cases (numpy RNG): frames with no
 relation to each other never give "ok"; identical frames give "ok" with no motion (within the
-trust check's still_deg and still_px) or a failure; a frame moved by a known motion gives that
-motion (within the check's offset limits plus a degree and a pixel) or a failure. Tolerances and
-what the check cannot see: docs/method.md, section 11.
+trust check's still_deg and still_px) or a failure (ICP: "ok" only); a frame moved by a known
+motion gives that motion (within the check's offset limits plus a degree and a pixel) or a
+failure. Tolerances and what the check cannot see: docs/method.md, section 11.
 """
 
 from __future__ import annotations
@@ -543,6 +543,11 @@ def test_unrelated_frames_never_give_ok(method):
         assert not motion.ok, f"{method} case {case} {shape}: ok {motion.as_tuple()}"
 
 
+#: Methods that must align a frame with itself ("ok", no motion), not merely fail: ICP's
+#: point-to-line steps reach no motion from starts a grid step off (docs/peers.md, "ICP").
+ALIGN_IDENTICAL_FRAMES = ("icp",)
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_identical_frames_give_zero_motion_or_fail(method):
     rng = method_rng(method, 1)
@@ -550,6 +555,8 @@ def test_identical_frames_give_zero_motion_or_fail(method):
         shape = property_shape(rng, method)
         frame = property_scene(rng, shape)
         motion = estimate(frame, frame.copy(), method)
+        if method in ALIGN_IDENTICAL_FRAMES:
+            assert motion.ok, f"{method} case {case} {shape}: {motion.status}"
         if motion.ok:
             angle, shift = errors(motion, Motion(0.0, 0.0, 0.0))
             assert angle <= STILL_DEG and shift <= STILL_PX, (
