@@ -9,7 +9,7 @@ is
     a = atan2(sum (q_x p_y - q_y p_x), sum p . q),
 
 and the translation carries the reference centroid onto the current one. One fit serves the
-ground truth (sim/harness/ground_truth.py) and the point-based peers (SIFT, ICP; docs/peers.md).
+ground truth (sim/harness/ground_truth.py), SIFT and point-to-point ICP (docs/peers.md).
 """
 
 from __future__ import annotations
