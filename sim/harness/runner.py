@@ -38,8 +38,10 @@ COMPLETE, FELL, INTERRUPTED, ERROR = "complete", "fell", "interrupted", "error"
 INCOMPLETE = "incomplete"
 #: Name of the recording in a run folder.
 RECORDING_RRD = "recording.rrd"
-#: Frames between checkpoints of frames.csv / metrics.json during a run.
-CHECKPOINT_FRAMES = 150
+#: Least wall-clock seconds between checkpoints of frames.csv / metrics.json during a run: an
+#: interruption the process cannot answer (a kill, a power cut) loses at most about this much
+#: work, and a fast run (re-scoring a sequence) spends no time on checkpoints.
+CHECKPOINT_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -400,6 +402,7 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
     with stop_signals_interrupt():
         scoring.start()
         bar = _progress_bar(source.n_frames, scoring.scenario.name, progress)
+        last_write = time.perf_counter()
         try:
             with source:
                 for item in source:
@@ -408,8 +411,9 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
                     if source.fall is not None:
                         scoring.end_with_fall(source.fall)
                         break
-                    if (item.frame.index + 1) % CHECKPOINT_FRAMES == 0:
+                    if time.perf_counter() - last_write >= CHECKPOINT_S:
                         scoring.write(final=False)
+                        last_write = time.perf_counter()
         except KeyboardInterrupt as interrupt:
             scoring.status, scoring.message = INTERRUPTED, interrupt_reason(interrupt)
         except Exception as error:

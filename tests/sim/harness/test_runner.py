@@ -122,7 +122,11 @@ def test_a_second_interrupt_during_the_final_write_leaves_the_folder_saying_inco
     assert not list(run_dir.glob(".*.tmp"))
 
 
-def test_checkpoints_are_written_every_checkpoint_frames(tmp_path, monkeypatch):
+@pytest.mark.parametrize("interval_s, checkpoints", [(0.0, list(range(1, 13))), (1e9, [])])
+def test_checkpoints_are_written_every_checkpoint_seconds(tmp_path, monkeypatch, interval_s,
+                                                          checkpoints):
+    """A checkpoint after each frame that ends CHECKPOINT_S or more after the last write (the
+    start's); none in a run shorter than that."""
     written = []
     real_write = sim.harness.report.write_run_outputs
 
@@ -130,11 +134,12 @@ def test_checkpoints_are_written_every_checkpoint_frames(tmp_path, monkeypatch):
         written.append((kwargs["status"], len(kwargs["records"]), kwargs["plots"]))
         return real_write(run_dir, **kwargs)
 
-    monkeypatch.setattr(sim.harness.runner, "CHECKPOINT_FRAMES", 5)
+    monkeypatch.setattr(sim.harness.runner, "CHECKPOINT_S", interval_s)
     monkeypatch.setattr(sim.harness.report, "write_run_outputs", spy)
     metrics, _ = _short_run(tmp_path, methods=("ecc",))
-    assert written == [("incomplete", 0, False), ("incomplete", 5, False),
-                       ("incomplete", 10, False), ("complete", 12, True)]
+    assert written == ([("incomplete", 0, False)]
+                       + [("incomplete", frames, False) for frames in checkpoints]
+                       + [("complete", 12, True)])
     assert metrics["run"]["frames_done"] == 12
 
 
