@@ -103,6 +103,10 @@ class CapturePointStepper:
         #: nominal departure of turning in place comes close to it): a disturbance such as a
         #: push; None until then.
         self.disturbed_at_s: float | None = None
+        #: The departure at that moment (m, forward and left in the support foot's frame), and
+        #: whether the step was then in single support.
+        self.disturbance_m: np.ndarray | None = None
+        self.disturbed_in_single_support = False
 
     def recovering(self, now_s: float) -> bool:
         """Whether the robot is in the steps that follow an adjusted one."""
@@ -137,6 +141,8 @@ class CapturePointStepper:
         if (self.disturbed_at_s is None and self._seen[key] >= self.min_seen
                 and remaining_s >= self.freeze_s and math.hypot(*residual) >= self.trigger_m):
             self.disturbed_at_s = now_s
+            self.disturbance_m = residual
+            self.disturbed_in_single_support = now_s >= step.start_s + step.double_support_s
         if self._adjusting_step_start_s != step.start_s:
             single_support = now_s >= step.start_s + step.double_support_s
             # While recovering (the steps after an adjusted one) no new adjustment starts: the

@@ -10,7 +10,8 @@ Per control period (docs/walking.md, "One control period"):
 4. analytic leg IK puts the feet on their planned poses;
 5. IMU feedback: the torso's tilt and angular rate correct the ankles (OP3/Darwin
    walking-module style) and its heading error steers the next footsteps;
-6. the waist, neck and arms follow the step phase (upper-body sway, head nod, arm swing).
+6. the waist, neck and arms follow the step phase (upper-body sway, head nod, arm swing); after
+   a push towards the support foot, the waist and the swing leg counterbalance it.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from sim.world.humanoid import LEG_JOINTS, MODEL_NAME, SIDES
 from sim.world.walking.capture_point import CapturePointStepper
+from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.footsteps import SIDE_SIGN, FootstepPlanner, Pose2D
 from sim.world.walking.gait import GaitParams
 from sim.world.walking.leg_ik import LegIK, rot_y, rot_z
@@ -52,6 +54,9 @@ class WalkingController:
         com_feedback_velocity_s: weight of the CoM velocity error in that error, s.
         slip_tolerance_m: after a disturbance, a slip of the support foot from its planned
             position beyond this moves the plan onto it (``_follow_slip``).
+        counterbalance: after a push detected in single support towards the support foot's
+            side, the waist rolls the upper body into the push and the swing leg swings away
+            from it (counterbalance.py).
     """
 
     def __init__(self, model: mujoco.MjModel, gait: GaitParams, control_period_s: float,
@@ -59,7 +64,7 @@ class WalkingController:
                  max_heading_correction_deg: float = 4.0,
                  step_adjustment: CapturePointStepper | None = None,
                  com_feedback_gain: float = 0.2, com_feedback_velocity_s: float = 0.6,
-                 slip_tolerance_m: float = 0.01):
+                 slip_tolerance_m: float = 0.01, counterbalance: bool = True):
         self.model = model
         self.gait = gait
         self.control_period_s = control_period_s
@@ -104,6 +109,9 @@ class WalkingController:
         self.com_feedback_velocity_s = com_feedback_velocity_s
         self.slip_tolerance_m = slip_tolerance_m
         self._slip_checked_step_s: float | None = None
+        self.counterbalance_enabled = counterbalance
+        #: The counterbalance move under way, if any.
+        self.counterbalance: Counterbalance | None = None
         self.targets = np.zeros(model.nu)
         self.planner: FootstepPlanner | None = None
 
@@ -123,6 +131,7 @@ class WalkingController:
                                        g.step_width_m, g.step_height_m, g.lateral_sway_m)
         self._preview.reset(start.xy)
         self._heading_goal = start.yaw
+        self.counterbalance = None
         self._yaw_rate = 0.0
         self._com_offset = np.zeros(3)
         self._torso_height = g.com_height_m
@@ -176,6 +185,8 @@ class WalkingController:
             self.step_adjustment.update(now_s, data, self.planner)
             if self.step_adjustment.disturbed_at_s is not None:
                 self._follow_slip(data)
+                if self.step_adjustment.disturbed_at_s == now_s:
+                    self._start_counterbalance(now_s)
             self.planner.update(now_s, self._preview_times[-1])
         reference = self.planner.zmp_reference(now_s + self._preview_times)
         self._preview.step(reference)
@@ -199,6 +210,16 @@ class WalkingController:
         self._update_com_offset()
         data.ctrl[:] = self.targets
         return self.targets
+
+    def _start_counterbalance(self, now_s: float) -> None:
+        """Start the counterbalance when the push just detected came in single support and
+        moved the capture point mostly outwards of the support foot (towards its side, more
+        than forward or backward: a forward push's small sideways part must not start it)."""
+        stepper, step = self.step_adjustment, self.planner.current_step
+        forward, left = stepper.disturbance_m
+        if (self.counterbalance_enabled and stepper.disturbed_in_single_support
+                and SIDE_SIGN[step.support_side] * left > abs(forward)):
+            self.counterbalance = Counterbalance(step.support_side, now_s, step.end_s)
 
     def _follow_slip(self, data: mujoco.MjData) -> None:
         """At each step start after a disturbance, move the plan onto the support foot's
@@ -255,6 +276,10 @@ class WalkingController:
         t[self._upper_body_actuators] = (
             waist_roll_amp * sway, waist_yaw_amp * sway, -self._lean + nod_amp * nod, 0.0,
             arm, roll, 0.0, elbow, -arm, -roll, 0.0, elbow)
+        if self.counterbalance is not None and not self.counterbalance.finished(now_s):
+            waist_roll, swing_hip_roll = self.counterbalance.offsets(now_s)
+            t[self._actuator["waist_roll"]] += waist_roll
+            t[self._actuator[f"{SIDES[self.counterbalance.swing_side]}_hip_roll"]] += swing_hip_roll
         self._torso_pos = torso_pos
         quat = np.empty(4)
         mujoco.mju_mat2Quat(quat, body_rot.ravel())

@@ -9,6 +9,7 @@ import pytest
 
 from sim.world.humanoid import TORSO_BODY_NAME
 from sim.world.walking import GAIT_PRESETS, RobotSimulation
+from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.footsteps import FootstepPlanner, Pose2D
 from sim.world.walking.push_recovery import (DIRECTIONS_DEG, HEADING_TOLERANCE_DEG,
                                              LATERAL_TOLERANCE_M, push_trial)
@@ -119,6 +120,7 @@ def test_unpushed_walking_is_unchanged_by_the_step_adjustment(model, gait):
     assert adjusted.controller.step_adjustment.adjusted_steps == 0
     assert adjusted.controller.step_adjustment.disturbed_at_s is None
     assert not adjusted.controller.com_feedback_active
+    assert adjusted.controller.counterbalance is None
     assert np.array_equal(adjusted.data.qpos, plain.data.qpos)
 
 
@@ -128,7 +130,7 @@ def test_unpushed_walking_is_unchanged_by_the_step_adjustment(model, gait):
 SUPPORT_SIDE_PUSHES = [("left", 0), ("left", 1), ("right", 2), ("right", 3)]
 
 
-@pytest.mark.parametrize("gait, impulse_ns", [("default", 0.75), ("paper_like", 1.25)])
+@pytest.mark.parametrize("gait, impulse_ns", [("default", 0.875), ("paper_like", 1.5)])
 @pytest.mark.parametrize("direction, seed", SUPPORT_SIDE_PUSHES)
 def test_a_push_towards_the_support_foot_is_survived_and_the_path_recovered(
         model, gait, impulse_ns, direction, seed):
@@ -150,6 +152,53 @@ def test_com_feedback_saves_support_side_pushes_that_topple_the_controller_witho
     with_feedback = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed)
     assert without.fell
     assert with_feedback.recovered, with_feedback
+
+
+@pytest.mark.parametrize("gait, impulse_ns", [("default", 0.875), ("paper_like", 1.5)])
+def test_counterbalance_saves_support_side_pushes_that_topple_the_controller_without_it(
+        model, gait, impulse_ns):
+    # Seed 0 pushes to the left 40 ms into the single support on the left foot.
+    without = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG["left"], seed=0,
+                         counterbalance=False)
+    with_counterbalance = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG["left"], seed=0)
+    assert without.fell
+    assert with_counterbalance.recovered, with_counterbalance
+
+
+@pytest.mark.parametrize("impulse_y_ns, starts", [(1.0, True), (-3.0, False)])
+def test_counterbalance_starts_only_for_a_push_towards_the_support_foot(model, impulse_y_ns,
+                                                                        starts):
+    # 4.04 s is 40 ms into a single support on the left foot (seed 0 of push_trial): a push to
+    # the left (+y) goes towards it, one to the right towards the swing foot.
+    sim = RobotSimulation(model, gait="default")
+    sim.schedule_push(4.04, (0.0, impulse_y_ns, 0.0), duration_s=0.1)
+    sim.run(1.0)
+    sim.command(forward_speed_mps=0.1)
+    sim.run(4.0)
+    assert sim.fall is None
+    assert sim.controller.step_adjustment.disturbed_at_s is not None
+    move = sim.controller.counterbalance
+    assert (move is not None) == starts
+    if starts:
+        assert move.support_side == 0 and 4.04 < move.start_s < move.touchdown_s
+
+
+def test_counterbalance_rolls_the_waist_into_the_push_and_the_swing_leg_away_from_it():
+    # Left support, so the push goes to +y: the waist tilts the top to +y and the right foot
+    # moves to -y, both negative rolls; the swing leg is back on its plan before touch-down.
+    move = Counterbalance(support_side=0, start_s=1.0, touchdown_s=1.3, waist_roll_rad=0.3,
+                          swing_hip_roll_rad=0.4, ramp_in_s=0.05, swing_return_s=0.1,
+                          waist_hold_s=0.2, waist_return_s=0.3)
+    assert move.swing_side == 1
+    assert move.offsets(1.0) == pytest.approx((0.0, 0.0))
+    assert move.offsets(1.025) == pytest.approx((-0.15, -0.2))
+    assert move.offsets(1.1) == pytest.approx((-0.3, -0.4))
+    assert move.offsets(1.25) == pytest.approx((-0.3, -0.2))
+    assert move.offsets(1.3) == pytest.approx((-0.3, 0.0))
+    assert move.offsets(1.65) == pytest.approx((-0.15, 0.0))
+    assert not move.finished(1.79) and move.finished(1.8)
+    mirrored = Counterbalance(support_side=1, start_s=1.0, touchdown_s=1.3)
+    assert mirrored.offsets(1.1) == pytest.approx((0.3, 0.4))
 
 
 @pytest.mark.parametrize("gait", ["default", "paper_like"])
