@@ -260,3 +260,77 @@ def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
     assert FallDetector(model).check(data) is None
     crouched = FallDetector(model, min_torso_height_m=0.35)  # above the standing height
     assert crouched.check(data).reason == "torso_low"
+
+
+def floor_walk(gait, slope_direction_deg, seed, seconds, follow_floor=True):
+    """Walk straight at 0.1 m/s on the corridor scene's roughest floor (3 degrees, 5 mm bumps;
+    benchmarks/floor_walks.py)."""
+    from sim.world.scenes import build_scene
+    from sim.world.scenes.floor import Floor
+
+    scene = build_scene("corridor", seed, floor=Floor(3.0, slope_direction_deg, 0.005))
+    sim = RobotSimulation(compile_world(assemble(scene.arena, scene.start_xy,
+                                                 scene.start_yaw_deg)), gait=gait, seed=seed)
+    sim.controller.follow_floor = follow_floor
+    sim.run(1.0)
+    sim.command(0.1, 0.0)
+    sim.run(seconds)
+    return sim
+
+
+@pytest.mark.parametrize("gait, slope_direction_deg, seed", [("default", 90.0, 1),
+                                                             ("paper_like", 0.0, 2)])
+def test_following_the_measured_floor_walks_where_the_level_plan_fell(
+        gait, slope_direction_deg, seed):
+    # The two walks of benchmarks/floor_walks.py that fell with the level plan (across the
+    # slope at 13.8 s, uphill at 11.4 s).
+    level = floor_walk(gait, slope_direction_deg, seed, 13.0, follow_floor=False)
+    assert level.fall is not None
+    sim = floor_walk(gait, slope_direction_deg, seed, 20.0)
+    assert sim.fall is None, sim.fall
+    slope = sim.controller.floor.estimate
+    assert math.degrees(math.atan(math.hypot(*slope))) == pytest.approx(3.0, abs=0.5)
+    rises_towards = math.degrees(math.atan2(slope[1], slope[0]))
+    assert abs(math.remainder(rises_towards - slope_direction_deg, 360.0)) < 5.0
+
+
+@pytest.mark.parametrize("gait", ["default", "paper_like"])
+def test_on_a_level_floor_following_the_floor_changes_nothing(model, gait):
+    runs = []
+    for follow_floor in (True, False):
+        sim = RobotSimulation(model, gait=gait, seed=1)
+        sim.controller.follow_floor = follow_floor
+        sim.run(1.0)
+        sim.command(0.12, 10.0)
+        sim.run(4.0)
+        runs.append(sim)
+    assert runs[0].controller.floor.estimate == (0.0, 0.0)
+    assert runs[0].controller.floor.is_level
+    np.testing.assert_array_equal(runs[0].data.qpos, runs[1].data.qpos)
+    np.testing.assert_array_equal(runs[0].data.ctrl, runs[1].data.ctrl)
+
+
+def test_floor_estimate_takes_the_median_slope_and_ignores_feet_on_their_edge():
+    from sim.world.walking.floor_estimate import FloorEstimate
+
+    floor = FloorEstimate(0.01, footholds=5, tilt_tolerance_deg=1.0, time_constant_s=0.2,
+                          max_slope_deg=6.0)
+    uphill = rot_y(-math.radians(3.0))           # a sole flat on a floor rising towards +x
+    floor.measure(rot_y(-math.radians(0.5)))     # within the tolerance of level: kept level
+    assert floor.estimate == (0.0, 0.0)
+    floor.measure(rot_x(math.radians(20.0)))     # a foot on its edge: ignored
+    for _ in range(3):
+        floor.measure(uphill)
+    assert floor.estimate[0] == pytest.approx(math.tan(math.radians(3.0)))
+    assert floor.estimate[1] == pytest.approx(0.0, abs=1e-12)
+    floor.measure(rot_x(math.radians(4.0)))      # one bumpy foothold does not move the median
+    assert floor.estimate[0] == pytest.approx(math.tan(math.radians(3.0)))
+    # The planned plane follows with a first-order lag, and the feet lie flat on it.
+    floor.advance()
+    assert floor.gradient[0] == pytest.approx(0.05 * math.tan(math.radians(3.0)))
+    for _ in range(300):
+        floor.advance()
+    assert floor.tilt() == pytest.approx(uphill, abs=1e-6)
+    assert floor.height(1.0, 5.0, 0.0, 5.0) == pytest.approx(math.tan(math.radians(3.0)))
+    with pytest.raises(ValueError, match="max_slope_deg"):
+        FloorEstimate(0.01, max_slope_deg=0.0)
