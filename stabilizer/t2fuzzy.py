@@ -505,8 +505,14 @@ class T2FuzzyEstimator:
         limit = self.refinements.max_shift_disagreement_px
         if (wide_shift is not None and limit > 0
                 and math.hypot(match.x - wide_shift[0], match.y - wide_shift[1]) > limit):
-            return Motion.failed(TRANSLATION_DISAGREEMENT,
-                                 disagreeing_motion=(angle, match.x, match.y), **diagnostics)
+            resolved = (self.rotation_search.resolve_disagreement(angle, match, image, valid)
+                        if self.refinements.resolve_disagreement else None)
+            if resolved is None:
+                return Motion.failed(TRANSLATION_DISAGREEMENT,
+                                     disagreeing_motion=(angle, match.x, match.y), **diagnostics)
+            # Refinement: resolved on the whole overlap (kept for the record).
+            diagnostics.update(disagreeing_motion=(angle, match.x, match.y))
+            angle, match = resolved
         return Motion(angle, match.x, match.y, diagnostics=diagnostics)
 
     def _angle_estimates(self, ref_fits: EllipseFits, cur_fits: EllipseFits,

@@ -25,6 +25,10 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   reach is climbed over rotations on the whole overlap instead.
 - Search without ellipse estimates (``search_without_estimates``): a frame whose ellipses give
   no rotation estimate is searched from rotation 0 rather than failed.
+- Resolving a disagreement (``resolve_disagreement``): when the central template's shift and
+  the wide search's disagree, both motions are climbed over rotation on the masked FNCC of the
+  whole overlap (:class:`OverlapNear`), and the higher peak is kept if the two climbs meet or
+  it leads by ``resolve_margin`` (:meth:`RotationSearch.resolve_disagreement`).
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
   (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
   maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
@@ -54,6 +58,11 @@ from stabilizer.motion import Motion, image_centre, motion_matrix
 
 #: Half-width (pixels) of the full-resolution search around a shift found at half resolution.
 FINE_RADIUS_PX = 4
+#: Half-width (pixels of its resolution) of the shifts :class:`OverlapNear` searches.
+NEAR_OVERLAP_RADIUS_PX = 3
+#: Most searches :class:`OverlapNear` makes for one match, each from the last one's peak while
+#: that peak is on the edge of the searched shifts.
+NEAR_OVERLAP_MOVES = 4
 #: The margins of the large templates (:meth:`RotationSearch.refine_on_large_template`) are
 #: multiples of this many pixels, so that a few templates serve all frames of a reference.
 LARGE_MARGIN_STEP_PX = 4
@@ -106,6 +115,16 @@ class Refinements:
             ``"translation_disagreement"``: the central template and the whole overlap point to
             different peaks, and one of them is wrong. 0: no such test. Default 8 pixels
             (docs/method.md, section 12, measures the choice).
+        resolve_disagreement: with the wide search, an estimate whose shift disagrees with the
+            wide search's (see ``max_shift_disagreement_px``) is not failed at once: both
+            motions are climbed over rotation on the masked FNCC of the whole overlap, at half
+            resolution and then at full resolution
+            (:meth:`RotationSearch.resolve_disagreement`), and the winner is the estimate.
+            Default True.
+        resolve_margin: with ``resolve_disagreement``, when the two climbs end at different
+            motions (more than one ``search_step_deg`` or ``max_shift_disagreement_px`` / 2
+            apart) the higher peak must lead by at least this much FNCC, or the frame keeps the
+            status ``"translation_disagreement"``; default 0.02.
         large_template_border_px: with ``rotation_search``, after the climb the rotation is
             climbed once more (at half resolution) and the shift measured again (at full
             resolution) on the largest central template the found shift allows, the reference
@@ -129,6 +148,8 @@ class Refinements:
     fail_unconverged: bool = True
     max_shift_disagreement_px: float = 8.0
     large_template_border_px: int = 6
+    resolve_disagreement: bool = True
+    resolve_margin: float = 0.02
 
     def __post_init__(self):
         if not self.search_step_deg > 0:
@@ -140,6 +161,8 @@ class Refinements:
         if self.max_shift_disagreement_px < 0:
             raise ValueError(f"max_shift_disagreement_px must be >= 0; "
                              f"got {self.max_shift_disagreement_px}")
+        if not self.resolve_margin >= 0:
+            raise ValueError(f"resolve_margin must be >= 0; got {self.resolve_margin}")
         if not self.max_rotation_deg > 0:
             raise ValueError(f"max_rotation_deg must be > 0; got {self.max_rotation_deg}")
         if not 0.0 < self.wide_min_overlap <= 1.0:
@@ -150,7 +173,8 @@ class Refinements:
         """No refinement: the paper's pipeline as written (the ``t2fuzzy_paper`` method)."""
         return cls(rotation_search=False, common_disc_passes=0, extra_disc_passes=0,
                    wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
-                   max_shift_disagreement_px=0.0, large_template_border_px=0)
+                   max_shift_disagreement_px=0.0, large_template_border_px=0,
+                   resolve_disagreement=False)
 
     @property
     def needs_coarse_template(self) -> bool:
@@ -231,6 +255,10 @@ class WideSearch:
         self.valid = half_resolution_valid(valid).view(np.uint8)
         centre_x, centre_y = image_centre(smoothed_reference.shape)
         self.centre = (centre_x / 2.0, centre_y / 2.0)
+        self.min_overlap = float(min_overlap)
+        self._full = (smoothed_reference, valid)
+        # The searches near a motion (OverlapNear), made when first asked for.
+        self._near: dict[bool, OverlapNear] = {}
         # No shift beyond the frame can keep an overlap.
         half_shift = min(max(int(max_shift) // 2, 1), min(self.reference.shape) - 1)
         self.correlation = MaskedCorrelation(self.reference.shape, half_shift, min_overlap)
@@ -251,6 +279,17 @@ class WideSearch:
         return TemplateMatch(2.0 * found.x, 2.0 * found.y, found.peak, found.at_border,
                              found.height)
 
+    def near(self, half: bool) -> OverlapNear:
+        """The same masked FNCC near a given motion (:class:`OverlapNear`), at half or at full
+        resolution; made once per reference."""
+        if half not in self._near:
+            self._near[half] = (
+                OverlapNear(self.reference, self.valid.view(bool), self.centre, 2.0,
+                            self.min_overlap) if half else
+                OverlapNear(*self._full, image_centre(self._full[0].shape), 1.0,
+                            self.min_overlap))
+        return self._near[half]
+
     def _reference_spectra(self, angle_deg: float) -> MaskedSpectra:
         """The rotated reference's share of the correlation."""
         if angle_deg == 0.0 and self._upright is not None:
@@ -266,6 +305,54 @@ class WideSearch:
         return spectra
 
 
+class OverlapNear:
+    """Masked FNCC of the whole overlap (:class:`~stabilizer.fncc.MaskedCorrelation`, Padfield
+    2012) over shifts within ``NEAR_OVERLAP_RADIUS_PX`` pixels of this resolution around a
+    given motion: the reference is warped by the whole motion (rotation about the centre, then
+    the shift), so the search is small and, unlike the central template, every pixel both
+    frames measure counts. A peak on the edge of the searched shifts is followed: the search
+    is repeated from it, up to ``NEAR_OVERLAP_MOVES`` times. Its :meth:`match` has the
+    signature of
+    :meth:`~stabilizer.fncc.RotatedTemplate.match`, so that the rotation climb takes it.
+
+    Args:
+        reference: the smoothed reference at this resolution (float32).
+        valid: its measured pixels (bool).
+        centre: the centre of rotation in this resolution's pixels.
+        scale: full-resolution pixels per pixel of this resolution (1 or 2).
+        min_overlap: see :class:`~stabilizer.fncc.MaskedCorrelation`.
+    """
+
+    def __init__(self, reference: np.ndarray, valid: np.ndarray, centre: tuple[float, float],
+                 scale: float, min_overlap: float):
+        self.reference = reference
+        self.valid = valid.view(np.uint8)
+        self.centre = centre
+        self.scale = float(scale)
+        self.correlation = MaskedCorrelation(reference.shape, NEAR_OVERLAP_RADIUS_PX,
+                                             min_overlap)
+
+    def spectra(self, image: np.ndarray, valid: np.ndarray) -> MaskedSpectra:
+        """The current frame's share of the correlation (this resolution), once per frame."""
+        return self.correlation.spectra(image, valid, moving=True)
+
+    def match(self, current: MaskedSpectra, angle_deg: float,
+              near: tuple[float, float]) -> TemplateMatch:
+        """The best shift (dx, dy), full-resolution pixels, near ``near`` for ``angle_deg``."""
+        for _ in range(NEAR_OVERLAP_MOVES):
+            matrix = cv2.getRotationMatrix2D(self.centre, float(angle_deg), 1.0)
+            matrix[:, 2] += np.asarray(near, np.float64) / self.scale
+            size = self.reference.shape[::-1]
+            warped = cv2.warpAffine(self.reference, matrix, size, flags=cv2.INTER_LINEAR)
+            valid = cv2.warpAffine(self.valid, matrix, size, flags=cv2.INTER_NEAREST)
+            found = self.correlation.match(
+                self.correlation.spectra(warped, valid.view(bool), moving=False), current)
+            near = (near[0] + self.scale * found.x, near[1] + self.scale * found.y)
+            if not (found.at_border and np.isfinite(found.height)):
+                break
+        return TemplateMatch(near[0], near[1], found.peak, found.at_border, found.height)
+
+
 def half_resolution_valid(valid: np.ndarray) -> np.ndarray:
     """Half-resolution validity (bool) of a ``cv2.pyrDown`` image: a pixel whose 5 x 5 kernel
     saw an unmeasured pixel blends in a 0 and is no measurement."""
@@ -278,7 +365,9 @@ class RotationSearch:
     Args:
         template: the reference's FNCC template (stage 6) at full resolution.
         coarse_template: the same at half resolution (:func:`half_resolution_template`).
-        refinements: ``search_step_deg``, ``search_max_steps`` and ``search_candidates``.
+        refinements: ``search_step_deg``, ``search_max_steps``, ``search_candidates``,
+            ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``
+            and ``resolve_margin``.
         wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
     """
 
@@ -296,6 +385,10 @@ class RotationSearch:
         self.wide = wide
         #: The wide search's best (dx, dy) in the last call, None if it did not run.
         self.wide_shift: tuple[float, float] | None = None
+        #: The candidate rotation at which the wide search found ``wide_shift``.
+        self.wide_angle: float | None = None
+        self.shift_tolerance = float(refinements.max_shift_disagreement_px) / 2.0
+        self.resolve_margin = float(refinements.resolve_margin)
 
     def __call__(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
                  near: tuple[float, float] | None = None,
@@ -319,13 +412,14 @@ class RotationSearch:
             if abs(mean) <= self.max_rotation and all(abs(mean - c) > self.step
                                                       for c in candidates):
                 candidates.append(mean)
-        self.wide_shift = None
+        self.wide_shift = self.wide_angle = None
         if self.wide is not None and near is None and valid is not None:
             spectra = self.wide.spectra(half, half_resolution_valid(valid))
             wide = [self.wide.match(spectra, angle) for angle in candidates]
             heights = [m.height if np.isfinite(m.height) else -np.inf for m in wide]
             best = int(np.argmax(heights))
             self.wide_shift = (wide[best].x, wide[best].y)
+            self.wide_angle = candidates[best]
             if not np.isfinite(heights[best]):
                 return candidates[best], wide[best], False
             reach = self.template.margin - FINE_RADIUS_PX
@@ -364,6 +458,49 @@ class RotationSearch:
                 return (*refined, converged)
         angle, match, fine_converged = self._climb(self.template, image, angle, centre)
         return angle, match, converged and fine_converged
+
+    def resolve_disagreement(self, angle: float, match: TemplateMatch, image: np.ndarray,
+                             valid: np.ndarray) -> tuple[float, TemplateMatch] | None:
+        """The motion at the higher of two peaks of the masked FNCC of the whole overlap, or
+        None when the two cannot be told apart; after a search whose estimate (``angle``,
+        ``match``) disagrees with the wide search's shift.
+
+        The wide search scored only the candidate rotations, so its shift is off when all of
+        them are (on the frames where the camera turns by 5-12 degrees it often ran at 0); the
+        central template's peak may lie on a ridge. Each motion starts a climb over rotation
+        (:meth:`_climb`) on the whole overlap near its own shift (:class:`OverlapNear`) at half
+        resolution; the higher peak is climbed again at full resolution (kept only if that ends
+        at a local maximum within two steps). The whole overlap's peak over rotation is broad
+        (smooth surfaces dominate it), so two climbs that end apart are told apart only by a
+        lead of ``resolve_margin`` in FNCC: otherwise, or if either climb has no maximum within
+        the rotation range, the frame stays a failure.
+        """
+        if self.wide is None or self.wide_shift is None:
+            return None
+        half_search = self.wide.near(half=True)
+        current = half_search.spectra(cv2.pyrDown(image), half_resolution_valid(valid))
+        climbs = [self._climb(half_search, current, start,
+                              half_search.match(current, start, shift))
+                  for start, shift in ((angle, (match.x, match.y)),
+                                       (self.wide_angle, self.wide_shift))]
+        if not all(converged and np.isfinite(top.height) for _, top, converged in climbs):
+            return None
+        (angle_a, top_a, _), (angle_b, top_b, _) = climbs
+        meet = (abs(angle_a - angle_b) <= self.step
+                and math.hypot(top_a.x - top_b.x, top_a.y - top_b.y) <= self.shift_tolerance)
+        if not meet and abs(top_a.height - top_b.height) < self.resolve_margin:
+            return None
+        angle, top, _ = climbs[0] if top_a.height >= top_b.height else climbs[1]
+        full_search = self.wide.near(half=False)
+        current = full_search.spectra(image, valid)
+        start = full_search.match(current, angle, (top.x, top.y))
+        if not np.isfinite(start.height):
+            return None
+        # A climb beyond two steps is not kept: it need not be walked.
+        fine_angle, fine, converged = self._climb(full_search, current, angle, start, 2)
+        if converged and abs(fine_angle - angle) < 2.0 * self.step:
+            return fine_angle, fine
+        return angle, start
 
     def refine_on_large_template(self, half: np.ndarray, image: np.ndarray, angle: float,
                                  match: TemplateMatch) -> tuple[float, TemplateMatch] | None:
@@ -416,20 +553,21 @@ class RotationSearch:
         return self.coarse_template.match(half, angle)
 
     def _climb(self, template: RotatedTemplate, image: np.ndarray, angle: float,
-               centre: TemplateMatch) -> tuple[float, TemplateMatch, bool]:
+               centre: TemplateMatch,
+               max_steps: int | None = None) -> tuple[float, TemplateMatch, bool]:
         """Hill-climb the correlation peak over rotation; parabolic vertex of the last three.
 
         The shift at the vertex is interpolated on the same parabola from the three matches
         (it changes smoothly with the rotation), which saves one more correlation. The flag
         says whether the climb ended at a local maximum (not after ``search_max_steps`` steps
-        or at ``max_rotation_deg``).
+        or at ``max_rotation_deg``); ``max_steps`` caps the steps below that.
         """
         near = (centre.x, centre.y)
         step = self.step
         below = template.match(image, angle - step, near)
         above = template.match(image, angle + step, near)
         converged = False
-        for _ in range(self.max_steps):
+        for _ in range(self.max_steps if max_steps is None else min(max_steps, self.max_steps)):
             if centre.height >= below.height and centre.height >= above.height:
                 converged = True
                 break

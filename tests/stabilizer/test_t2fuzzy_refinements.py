@@ -4,8 +4,10 @@ import cv2
 import numpy as np
 import pytest
 
-from stabilizer.fncc import RotatedTemplate
+import stabilizer
+from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.motion import Motion, apply_motion
+from stabilizer.t2fuzzy import TRANSLATION_DISAGREEMENT
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
     RotationSearch,
@@ -15,6 +17,7 @@ from stabilizer.t2fuzzy_refinements import (
     half_resolution_valid,
     translation_guess,
 )
+from stabilizer.testing import make_depth_scene
 
 
 def _scene():
@@ -150,14 +153,15 @@ def test_off_is_the_paper_pipeline():
     off = Refinements.off()
     assert not off.rotation_search and off.common_disc_passes == off.extra_disc_passes == 0
     assert off.wide_search_px == 0 and not off.search_without_estimates
-    assert not off.fail_unconverged
+    assert not off.fail_unconverged and not off.resolve_disagreement
+    assert Refinements().resolve_disagreement
     assert not off.needs_coarse_template and Refinements().needs_coarse_template
 
 
 @pytest.mark.parametrize("params", [{"search_step_deg": 0.0}, {"search_max_steps": -1},
                                     {"common_disc_passes": -1}, {"extra_disc_passes": -1},
                                     {"wide_search_px": -1}, {"wide_min_overlap": 0.0},
-                                    {"max_rotation_deg": 0.0}])
+                                    {"max_rotation_deg": 0.0}, {"resolve_margin": -0.1}])
 def test_bad_refinement_parameters_are_value_errors(params):
     with pytest.raises(ValueError, match=next(iter(params))):
         Refinements(**params)
@@ -181,3 +185,71 @@ def test_the_large_template_refines_the_rotation_and_the_shift():
     far = type(far)(40.0, far.y, far.peak, far.at_border, far.height)
     assert search.refine_on_large_template(cv2.pyrDown(image), image, 6.0, far) is None
     assert Refinements.off().large_template_border_px == 0
+
+
+@pytest.mark.parametrize("half", [False, True])
+def test_overlap_near_follows_the_peak_to_the_shift(half):
+    """Searched from a shift 9 px off (beyond its +-3 px window, at either resolution), the
+    masked FNCC of the whole overlap near a motion follows its peak to the true shift."""
+    truth = Motion(8.0, 10.0, -5.0)
+    search, image, valid = _wide_search_setup(truth)
+    near = search.wide.near(half)
+    current = (near.spectra(cv2.pyrDown(image), half_resolution_valid(valid)) if half
+               else near.spectra(image, valid))
+    found = near.match(current, truth.angle_deg, (truth.dx - 6.0, truth.dy + 7.0))
+    np.testing.assert_allclose((found.x, found.y), (truth.dx, truth.dy), atol=0.6)
+    assert found.height > 0.98 and not found.at_border
+    # A wrong rotation correlates less at its best shift.
+    assert near.match(current, 0.0, (truth.dx, truth.dy)).height < found.height - 0.01
+
+
+def test_a_disagreement_is_resolved_on_the_whole_overlap():
+    """The wide search scored rotation 0 only (its shift is that of a wrong rotation), and the
+    central estimate is 9 px off in y: climbed on the whole overlap, the motion is the truth."""
+    truth = Motion(8.0, 10.0, -5.0)
+    search, image, valid = _wide_search_setup(truth)
+    search(np.array([0.0]), 0.0, image, valid=valid)
+    assert search.wide_angle == 0.0
+    wrong = TemplateMatch(truth.dx, truth.dy - 9.0, 0.9, False, 0.9)
+    angle, match = search.resolve_disagreement(truth.angle_deg + 0.5, wrong, image, valid)
+    np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
+
+
+def test_two_peaks_that_correlate_alike_stay_a_disagreement():
+    """Stripes 24 px apart: shifts one period apart correlate alike on the whole overlap, so
+    the two climbs end apart with no clear lead, and the disagreement is not resolved."""
+    reference = np.full((144, 176), 40, np.uint8)
+    for left in range(0, 176, 24):
+        reference[:, left:left + 12] = 160
+    reference[100:] += 30  # a horizon fixes y
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(), WideSearch(smoothed, reference > 0, 72, 0.3))
+    current = apply_motion(reference, Motion(0.0, 5.0, 3.0))
+    image, valid = _smoothed(current), current > 0
+    search(np.array([0.0]), 0.0, image, valid=valid)
+    search.wide_angle, search.wide_shift = 0.0, (5.0 + 24.0, 3.0)
+    estimate = TemplateMatch(5.0, 3.0, 0.9, False, 0.9)
+    assert search.resolve_disagreement(0.0, estimate, image, valid) is None
+    # With no margin asked for, the higher of the two is taken.
+    search.resolve_margin = 0.0
+    assert search.resolve_disagreement(0.0, estimate, image, valid) is not None
+
+
+def test_the_estimator_resolves_a_disagreement_only_when_asked_to():
+    """Every estimate disagrees with the wide search at a 1e-6 px limit: without the
+    resolution it is a failure; with it (and no margin asked for) the estimate is the whole
+    overlap's peak, and the central template's motion stays in the diagnostics."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
+    truth = Motion(4.0, 9.0, -6.0)
+    current = apply_motion(reference, truth)
+    strict = dict(max_shift_disagreement_px=1e-6, resolve_margin=0.0)
+    failed = stabilizer.estimate(reference, current, verification=None,
+                                 refinements=Refinements(resolve_disagreement=False, **strict))
+    assert failed.status == TRANSLATION_DISAGREEMENT
+    resolved = stabilizer.estimate(reference, current, verification=None,
+                                   refinements=Refinements(**strict))
+    assert resolved.ok
+    np.testing.assert_allclose(resolved.as_tuple(), truth.as_tuple(), atol=0.5)
+    np.testing.assert_allclose(resolved.diagnostics["disagreeing_motion"],
+                               failed.diagnostics["disagreeing_motion"])
