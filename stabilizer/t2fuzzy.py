@@ -39,6 +39,10 @@ Statuses of a Motion that carries no estimate (``Motion.failed``):
   central template and the best shift of the whole overlap (``wide_shift``) differ by more than
   that; the estimate is in ``diagnostics["disagreeing_motion"]``.
 
+With the refinement ``resolve_disagreement`` (the default of ``t2fuzzy``) the last two are
+failures only when climbs on the whole overlap cannot settle the motion; a settled frame keeps
+the doubtful estimate in the same diagnostic.
+
 Diagnostics of every Motion: ``n_clusters``, ``centres`` (gray levels), ``labels`` (H x W int32
 label image of the current frame; 0 = invalid or unlabelled, 1..C), ``object_angles`` (the
 rotation estimates of stage 4, degrees), ``angle_sources`` (one row (reference label, current
@@ -498,21 +502,22 @@ class T2FuzzyEstimator:
         diagnostics.update(ncc_peak=match.peak, ncc_at_border=match.at_border)
         if not (match.peak >= self.min_ncc):
             return Motion.failed(NO_TRANSLATION, angle_deg=angle, **diagnostics)
-        if not converged and self.refinements.fail_unconverged:
-            return Motion.failed(ROTATION_UNCONVERGED,
-                                 unconverged_motion=(angle, match.x, match.y), **diagnostics)
         wide_shift = diagnostics.get("wide_shift")
         limit = self.refinements.max_shift_disagreement_px
-        if (wide_shift is not None and limit > 0
+        if not converged and self.refinements.fail_unconverged:
+            status, record = ROTATION_UNCONVERGED, "unconverged_motion"
+        elif (wide_shift is not None and limit > 0
                 and math.hypot(match.x - wide_shift[0], match.y - wide_shift[1]) > limit):
-            resolved = (self.rotation_search.resolve_disagreement(angle, match, image, valid)
-                        if self.refinements.resolve_disagreement else None)
-            if resolved is None:
-                return Motion.failed(TRANSLATION_DISAGREEMENT,
-                                     disagreeing_motion=(angle, match.x, match.y), **diagnostics)
-            # Refinement: resolved on the whole overlap (kept for the record).
-            diagnostics.update(disagreeing_motion=(angle, match.x, match.y))
-            angle, match = resolved
+            status, record = TRANSLATION_DISAGREEMENT, "disagreeing_motion"
+        else:
+            return Motion(angle, match.x, match.y, diagnostics=diagnostics)
+        # Refinement: a doubtful search settled on the whole overlap, or a failure.
+        diagnostics[record] = (angle, match.x, match.y)
+        resolved = (self.rotation_search.resolve_disagreement(angle, match, image, valid)
+                    if self.refinements.resolve_disagreement else None)
+        if resolved is None:
+            return Motion.failed(status, **diagnostics)
+        angle, match = resolved
         return Motion(angle, match.x, match.y, diagnostics=diagnostics)
 
     def _angle_estimates(self, ref_fits: EllipseFits, cur_fits: EllipseFits,

@@ -26,7 +26,8 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
 - Search without ellipse estimates (``search_without_estimates``): a frame whose ellipses give
   no rotation estimate is searched from rotation 0 rather than failed.
 - Resolving a disagreement (``resolve_disagreement``): when the central template's shift and
-  the wide search's disagree, both motions are climbed over rotation on the masked FNCC of the
+  the wide search's disagree, or the search's climb ended without a maximum, the estimate and
+  the wide search's motion are climbed over rotation on the masked FNCC of the
   whole overlap (:class:`OverlapNear`), and the higher peak is kept if the two climbs meet or
   it leads by ``resolve_margin`` (:meth:`RotationSearch.resolve_disagreement`).
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
@@ -116,15 +117,16 @@ class Refinements:
             different peaks, and one of them is wrong. 0: no such test. Default 8 pixels
             (docs/method.md, section 12, measures the choice).
         resolve_disagreement: with the wide search, an estimate whose shift disagrees with the
-            wide search's (see ``max_shift_disagreement_px``) is not failed at once: both
-            motions are climbed over rotation on the masked FNCC of the whole overlap, at half
+            wide search's (see ``max_shift_disagreement_px``), or whose climb ended without a
+            maximum (see ``fail_unconverged``), is not failed at once: it and the wide search's
+            motion are climbed over rotation on the masked FNCC of the whole overlap, at half
             resolution and then at full resolution
             (:meth:`RotationSearch.resolve_disagreement`), and the winner is the estimate.
             Default True.
         resolve_margin: with ``resolve_disagreement``, when the two climbs end at different
             motions (more than one ``search_step_deg`` or ``max_shift_disagreement_px`` / 2
             apart) the higher peak must lead by at least this much FNCC, or the frame keeps the
-            status ``"translation_disagreement"``; default 0.02.
+            status ``"translation_disagreement"`` (or ``"rotation_unconverged"``); default 0.02.
         large_template_border_px: with ``rotation_search``, after the climb the rotation is
             climbed once more (at half resolution) and the shift measured again (at full
             resolution) on the largest central template the found shift allows, the reference
@@ -463,7 +465,7 @@ class RotationSearch:
                              valid: np.ndarray) -> tuple[float, TemplateMatch] | None:
         """The motion at the higher of two peaks of the masked FNCC of the whole overlap, or
         None when the two cannot be told apart; after a search whose estimate (``angle``,
-        ``match``) disagrees with the wide search's shift.
+        ``match``) disagrees with the wide search's shift, or whose climb found no maximum.
 
         The wide search scored only the candidate rotations, so its shift is off when all of
         them are (on the frames where the camera turns by 5-12 degrees it often ran at 0); the

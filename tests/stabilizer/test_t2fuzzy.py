@@ -15,7 +15,7 @@ from stabilizer.t2fuzzy import (
     T2FuzzyEstimator,
     TranslationParams,
 )
-from stabilizer.t2fuzzy_refinements import Refinements
+from stabilizer.t2fuzzy_refinements import Refinements, RotationSearch
 from stabilizer.testing import make_depth_scene, random_motion
 
 N_CASES = 100
@@ -287,3 +287,26 @@ def test_an_unconverged_rotation_search_is_a_failure():
     climbed = stabilizer.estimate(reference, current, verification=None)
     assert climbed.ok and climbed.diagnostics["search_converged"]
     assert climbed.angle_deg == pytest.approx(9.0, abs=0.5)
+
+
+def test_an_unconverged_search_is_settled_on_the_whole_overlap(monkeypatch):
+    """A search said to end without a maximum is climbed again on the whole overlap from its
+    estimate and from the wide search's motion (``resolve_disagreement``): both climbs reach
+    the truth here, so it is the estimate; without the refinement the frame fails."""
+    reference = _scene(8)
+    truth = Motion(9.0, 3.0, 2.0)
+    current = apply_motion(reference, truth)
+    search = RotationSearch.__call__
+
+    def unconverged(self, *args, **kwargs):
+        angle, match, _ = search(self, *args, **kwargs)
+        return angle, match, False
+
+    monkeypatch.setattr(RotationSearch, "__call__", unconverged)
+    settled = stabilizer.estimate(reference, current, verification=None)
+    assert settled.ok
+    np.testing.assert_allclose(settled.as_tuple(), truth.as_tuple(), atol=0.5)
+    assert "unconverged_motion" in settled.diagnostics
+    failed = stabilizer.estimate(reference, current, verification=None,
+                                 refinements=Refinements(resolve_disagreement=False))
+    assert failed.status == ROTATION_UNCONVERGED
