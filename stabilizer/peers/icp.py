@@ -30,10 +30,9 @@ direction of the image gradient (``cv2.Sobel``, 3 x 3: the gradient Canny thresh
 prepared reference at its edge pixels, computed once.
 
 ``error_metric="point_to_point"`` solves Besl & McKay's closed-form rigid fit about the image
-centre (:func:`stabilizer.rigid_fit.fit_rigid`) on the matches instead, as this module did
-before point-to-line: where a frame's edges run mostly one way and their ends are unreliable
-(parallax, occlusion), its slow progress along the edges keeps the start's shift, which can be
-the better one (docs/peers.md, "ICP").
+centre (:func:`stabilizer.rigid_fit.fit_rigid`) on the matches instead: where a frame's edges
+run mostly one way and their ends are unreliable (parallax, occlusion), its slow progress along
+the edges keeps the start's shift, which can be the better one (docs/peers.md, "ICP").
 
 Partial overlap (parts of the scene leave or enter the view): matches farther than a gate are
 not correspondences. The gate starts at ``max_distance_px`` and follows the registration
