@@ -114,8 +114,9 @@ class Refinements:
         max_shift_disagreement_px: with the wide search, an estimate whose shift lies farther
             than this from the wide search's best shift gives the status
             ``"translation_disagreement"``: the central template and the whole overlap point to
-            different peaks, and one of them is wrong. 0: no such test. Default 8 pixels
-            (docs/method.md, section 12, measures the choice).
+            different peaks, and one of them is wrong (unless ``resolve_disagreement`` settles
+            it). 0: no such test. Default 5 pixels (docs/method.md, section 12, measures the
+            choice).
         resolve_disagreement: with the wide search, an estimate whose shift disagrees with the
             wide search's (see ``max_shift_disagreement_px``), or whose climb ended without a
             maximum (see ``fail_unconverged``), is not failed at once: it and the wide search's
@@ -148,7 +149,7 @@ class Refinements:
     search_without_estimates: bool = True
     max_rotation_deg: float = 20.0
     fail_unconverged: bool = True
-    max_shift_disagreement_px: float = 8.0
+    max_shift_disagreement_px: float = 5.0
     large_template_border_px: int = 6
     resolve_disagreement: bool = True
     resolve_margin: float = 0.02
