@@ -286,6 +286,18 @@ def figures(root: Path, out: Path) -> None:
         print(out / file_name)
 
 
+def _sequences(folders: list[Path]) -> list[Path]:
+    """The sequence folders among ``folders``, sorted; a folder without sequence.json (a
+    recording that did not finish) is named and left out."""
+    complete = []
+    for folder in sorted(folders):
+        if (folder / "sequence.json").is_file():
+            complete.append(folder)
+        else:
+            print(f"{folder}: no sequence.json (a recording that did not finish); left out")
+    return complete
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -308,11 +320,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "record":
         record(args.out, args.seeds)
     elif args.command == "table":
-        table(sorted(args.folders))
+        table(_sequences(args.folders))
     elif args.command == "summary":
-        summary(sorted(args.folders), args.methods, args.stride)
+        summary(_sequences(args.folders), args.methods, args.stride)
     elif args.command == "stage6":
-        stage6(sorted(args.folders))
+        stage6(_sequences(args.folders))
     else:
         figures(args.root, args.out)
     return 0
