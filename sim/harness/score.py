@@ -24,9 +24,9 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-#: Chunks per worker: enough for a balanced load, few enough that references are analysed
-#: once per chunk, not once per frame.
-CHUNKS_PER_WORKER = 4
+#: Chunks per worker: many, so that no worker is left alone with a long chunk at the end (a
+#: chunk is cut only where the reference changes, so each reference is still analysed once).
+CHUNKS_PER_WORKER = 16
 #: Columns of an estimates file; "status" is optional (default "ok").
 ESTIMATE_COLUMNS = ("frame", "angle_deg", "dx", "dy")
 #: Status of a frame an estimates file does not mention.
