@@ -67,11 +67,17 @@ class VerificationParams:
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). Default 10.
-        convincing_correlation: below this optimum correlation the check also looks for a
-            better explanation away from the estimate (:meth:`Verifier.candidate`). Default 0.7:
-            the median accurate walking estimate's optimum scores about 0.68.
-        candidate_margin: that explanation must correlate this much better than the estimate's
-            optimum to fail the estimate. Default 0.1.
+        convincing_correlation: below this optimum correlation the check also looks for
+            another explanation away from the estimate (:meth:`Verifier.candidate`). Default
+            0.7: the median accurate walking estimate's optimum scores about 0.68.
+        candidate_margin: that explanation fails the estimate when it correlates better than
+            the estimate's optimum less this: the frames are then explained about as well
+            elsewhere, and the check cannot tell which motion is right. Default 0.05: on walking
+            frames it left a third of the large errors that a margin of -0.1 (a candidate 0.1
+            better) let pass, for 0.1-0.4 points more failures (docs/method.md, section 11).
+        outside_margin: the same margin against an estimate that turns beyond the searched
+            angles, which must explain the frames clearly better than a turn within them.
+            Default 0.1.
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
     """
@@ -87,7 +93,8 @@ class VerificationParams:
     clip_factor: float = 5.0
     optimum_iterations: int = 10
     convincing_correlation: float = 0.7
-    candidate_margin: float = 0.1
+    candidate_margin: float = 0.05
+    outside_margin: float = 0.1
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
 
     def __post_init__(self):
@@ -227,11 +234,13 @@ class Verifier:
     3. the estimate lies within ``max_offset_deg`` and ``max_offset_px`` of the optimum: no
        nearby motion explains the frames clearly better (a wrong estimate that still overlaps
        some edges is not at the optimum);
-    4. when the optimum is not convincing (correlation below ``convincing_correlation``) or the
-       estimate turns beyond the searched angles, the best motion of a search independent of
-       the estimate (:meth:`candidate`, climbed to its own optimum unless it lies within the
-       offset limits of the estimate's optimum) does not explain the frames better from beyond
-       the offset limits (:meth:`_better_candidate`): the estimate is not on a false peak;
+    4. the best motion of a search independent of the estimate's shift (:meth:`candidate`:
+       over the grid of angles when the optimum is not convincing, correlation below
+       ``convincing_correlation``, or the estimate turns beyond the grid; else at the
+       estimate's angle; climbed to its own optimum unless it lies within the
+       offset limits of the estimate's optimum) does not explain the frames about as well or
+       better from beyond the offset limits (:meth:`_rival_candidate`): the estimate is not on
+       a false peak, nor on one of two peaks the check cannot tell apart;
     5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
@@ -256,11 +265,14 @@ class Verifier:
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
         self._padded_shape = tuple(even_dft_size(n) for n in half.shape)
         self._reference_windowed = self._windowed(half)
-        # The search's turn-backs depend on the frame size alone: made once per reference.
-        centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
-        self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
-                             rotation_matrix(math.radians(angle)))
-                            for angle in params.candidate_angles_deg]
+        # The grid's turn-backs depend on the frame size alone: made once per reference.
+        self._half_centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
+        self._turn_backs = [self._turn_back(angle) for angle in params.candidate_angles_deg]
+
+    def _turn_back(self, angle: float) -> tuple[float, np.ndarray, np.ndarray]:
+        """The angle, the half-resolution warp that turns a frame back by it, and its rotation."""
+        return (angle, cv2.getRotationMatrix2D(self._half_centre, -angle, 1.0),
+                rotation_matrix(math.radians(angle)))
 
     def _windowed(self, half: np.ndarray, padded: np.ndarray | None = None) -> np.ndarray:
         """A half-resolution edge image times the Hanning window, zero-padded to even DFT sizes
@@ -271,9 +283,10 @@ class Verifier:
         np.multiply(half, self._window, out=padded[:half.shape[0], :half.shape[1]])
         return padded
 
-    def candidate(self, current_half: tuple[np.ndarray, np.ndarray]) -> Motion:
-        """The most likely motion over the angle grid ``candidate_angles_deg``, independent of
-        any estimate.
+    def candidate(self, current_half: tuple[np.ndarray, np.ndarray],
+                  angles_deg: tuple[float, ...] | None = None) -> Motion:
+        """The most likely motion over the angles ``angles_deg`` (default: the grid
+        ``candidate_angles_deg``), independent of any estimate's shift.
 
         For each angle a, the current half-resolution edge image is turned back by a and the
         remaining shift t' found by phase correlation (``cv2.phaseCorrelate``); turning back
@@ -283,7 +296,9 @@ class Verifier:
         half, _ = current_half
         padded = np.zeros(self._padded_shape, np.float32)
         best_response, best = -math.inf, Motion(0.0, 0.0, 0.0)
-        for angle, turn_back, turn in self._turn_backs:
+        turn_backs = (self._turn_backs if angles_deg is None
+                      else [self._turn_back(angle) for angle in angles_deg])
+        for angle, turn_back, turn in turn_backs:
             derotated = cv2.warpAffine(half, turn_back, half.shape[::-1], flags=cv2.INTER_LINEAR)
             shift_half, response = cv2.phaseCorrelate(self._reference_windowed,
                                                       self._windowed(derotated, padded))
@@ -335,7 +350,7 @@ class Verifier:
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
         optimum); otherwise a failed Motion with the status ``"unverified"``, the same
         diagnostics, ``verify_failed`` (``"overlap"``, ``"correlation"``, ``"not_optimum"``,
-        ``"better_candidate"`` or ``"no_motion"``: the first test failed; a better candidate
+        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a rival candidate
         adds ``verify_candidate`` and ``verify_candidate_correlation``) and the rejected
         estimate as ``unverified_motion``. A Motion that is already a failure is returned as it
         is."""
@@ -364,12 +379,12 @@ class Verifier:
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px) else None)
         if failed is None:  # the search costs most of the check: only for what passed so far
-            better = self._better_candidate(current_edges, current_half, motion, optimum,
-                                            optimum_correlation)
-            if better is not None:
-                failed = "better_candidate"
-                diagnostics.update(verify_candidate=better[0].as_tuple(),
-                                   verify_candidate_correlation=better[1])
+            rival = self._rival_candidate(current_edges, current_half, motion, optimum,
+                                           optimum_correlation)
+            if rival is not None:
+                failed = "ambiguous"
+                diagnostics.update(verify_candidate=rival[0].as_tuple(),
+                                   verify_candidate_correlation=rival[1])
         if failed is None and (abs(motion.angle_deg) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = null_correlation >= optimum_correlation - params.null_margin
@@ -379,43 +394,46 @@ class Verifier:
                                  unverified_motion=motion.as_tuple(), **diagnostics)
         return Motion(motion.angle_deg, motion.dx, motion.dy, diagnostics=diagnostics)
 
-    def _better_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
-                          current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
-                          optimum: Motion, optimum_correlation: float
-                          ) -> tuple[Motion, float] | None:
-        """A motion away from ``motion`` that explains the frames better, or None.
+    def _rival_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
+                         current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
+                         optimum: Motion, optimum_correlation: float
+                         ) -> tuple[Motion, float] | None:
+        """A motion away from ``motion`` that explains the frames about as well or better, or
+        None.
 
-        Searched when the optimum near the estimate (``optimum``, within the offset limits of
-        ``motion``) is not convincing (its correlation below ``convincing_correlation``) or the
-        estimate turns by more than the search's angles (plus ``max_offset_deg``). The
+        Searched over the grid of angles when the optimum near the estimate (``optimum``,
+        within the offset limits of ``motion``) is not convincing (its correlation below
+        ``convincing_correlation``) or the estimate turns by more than the grid's angles (plus
+        ``max_offset_deg``); otherwise at the estimate's own angle only. The
         :meth:`candidate`, climbed to its :meth:`local_optimum`, wins when it lies beyond the
-        offset limits of the estimate and correlates more than ``candidate_margin`` better than
-        the estimate's optimum; against an estimate outside the searched angles, when it
-        correlates no more than ``candidate_margin`` worse: a turn beyond the walking range must
-        explain the frames clearly better than one within it (a half turn can line up a
+        offset limits of the estimate and correlates better than the estimate's optimum less
+        ``candidate_margin`` (two peaks that close cannot be told apart); against an estimate
+        outside the searched angles, less ``outside_margin``: a turn beyond the walking range
+        must explain the frames clearly better than one within it (a half turn can line up a
         point-symmetric object, say a box, as well as the truth).
 
         A candidate within the offset limits of ``optimum`` agrees with the estimate and is not
         climbed: the climb from there ends at that optimum (of 393 such candidates on the walking
         frames of docs/method.md, section 11, "Cost", climbed anyway, one ended beyond the offset
-        limits of the estimate and none correlated better than its optimum). Nor is the
-        correlation of a refined candidate within the offset limits of the estimate measured: it
-        cannot fail the estimate.
+        limits of the estimate). Nor is the correlation of a refined candidate within the offset
+        limits of the estimate measured: it cannot fail the estimate.
         """
         params = self.params
         widest = max(abs(angle) for angle in params.candidate_angles_deg)
         outside = abs(float(wrap_angle_deg(motion.angle_deg))) > widest + params.max_offset_deg
-        if optimum_correlation >= params.convincing_correlation and not outside:
-            return None
-        candidate = self.candidate(current_half)
+        convincing = optimum_correlation >= params.convincing_correlation and not outside
+        # A convincing optimum may still be one of several shifts that line up a repeated
+        # structure (two alike objects): the shift's search at the estimate's own rotation costs
+        # a seventh of the grid's.
+        candidate = self.candidate(current_half, (motion.angle_deg,) if convincing else None)
         if not self._beyond_offset(candidate, optimum):
             return None
         refined = self.local_optimum(current_half, candidate) or candidate
         if not self._beyond_offset(refined, motion):
             return None
         correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
-        margin = -params.candidate_margin if outside else params.candidate_margin
-        if correlation > optimum_correlation + margin:
+        margin = params.outside_margin if outside else params.candidate_margin
+        if correlation > optimum_correlation - margin:
             return refined, correlation
         return None
 

@@ -108,10 +108,54 @@ def test_a_half_turn_that_lines_up_a_symmetric_object_fails():
     checked = Verifier(reference)(current, half_turn)
     assert checked.diagnostics["verify_correlation"] > 0.9
     assert checked.status == UNVERIFIED
-    assert checked.diagnostics["verify_failed"] == "better_candidate"
+    assert checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_candidate"][0] == pytest.approx(truth.angle_deg, abs=1.0)
     wide = VerificationParams(candidate_angles_deg=(-15.0, 15.0, 190.0))
     assert Verifier(reference, wide)(current, half_turn).ok
+
+
+def twin_boxes() -> tuple[np.ndarray, np.ndarray, Motion]:
+    """Reference, current and truth of a scene with two alike boxes 70 px apart on a sloping
+    floor: a shift that lines one box of the current frame up with the other box of the
+    reference lines their overlap up almost as well as the truth."""
+    depth = np.full(SR4000_SHAPE, 3.0)
+    rows, cols = np.mgrid[0:SR4000_SHAPE[0], 0:SR4000_SHAPE[1]]
+    depth -= 0.004 * (rows - SR4000_SHAPE[0] / 2)
+    for centre in (50, 120):
+        depth[(abs(cols - centre) < 14) & (abs(rows - 70) < 30)] = 1.5
+    reference = stabilizer.depth_to_disparity(depth)
+    truth = Motion(2.0, 5.0, -3.0)
+    return reference, apply_motion(reference, truth), truth
+
+
+@pytest.mark.parametrize("box_shift", [-70.0, 70.0])
+def test_an_estimate_that_lines_a_box_up_with_its_twin_is_ambiguous(box_shift):
+    """Its optimum is convincing (correlation above 0.9), yet the shift search at its own angle
+    finds the truth, which lines the frames up as well or better: the check cannot vouch for
+    the estimate. The truth itself passes."""
+    reference, current, truth = twin_boxes()
+    wrong = Motion(truth.angle_deg, truth.dx + box_shift, truth.dy)
+    checked = Verifier(reference)(current, wrong)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
+    assert checked.diagnostics["verify_optimum_correlation"] > 0.9
+    candidate = Motion(*checked.diagnostics["verify_candidate"])
+    assert candidate.angle_deg == pytest.approx(truth.angle_deg, abs=0.5)
+    assert math.hypot(candidate.dx - truth.dx, candidate.dy - truth.dy) < 1.0
+    assert Verifier(reference)(current, truth).ok
+
+
+def test_candidate_margin_is_how_much_worse_a_rival_may_be_and_still_fail_the_estimate():
+    reference, current, truth = twin_boxes()
+    wrong = Motion(truth.angle_deg, truth.dx - 70.0, truth.dy)
+    measured = Verifier(reference)(current, wrong).diagnostics
+    lead = measured["verify_candidate_correlation"] - measured["verify_optimum_correlation"]
+    assert lead > 0.02  # the rival is the better of the two here
+
+    def checked(margin: float) -> Motion:
+        return Verifier(reference, VerificationParams(candidate_margin=margin))(current, wrong)
+
+    assert checked(-lead + 0.01).diagnostics["verify_failed"] == "ambiguous"
+    assert checked(-lead - 0.01).ok
 
 
 def noisy(image: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
