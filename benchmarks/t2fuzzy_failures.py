@@ -5,6 +5,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py record  --out /tmp/t2f/seq     # 24 sequences
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
+    python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margin
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
@@ -146,6 +147,38 @@ def summary(folders: list[Path], methods: list[str], stride: int) -> None:
               f"{1e3 * seconds / n_frames:.2f} ms/frame (CPU), {n_frames} frames of "
               f"{len(folders)} sequences")
         print("   " + ", ".join(f"{name} {count}" for name, count in statuses.most_common()))
+
+
+def margins(folders: list[Path], methods: list[str], stride: int,
+            candidate_margins: list[float]) -> None:
+    """For each ``candidate_margin`` of the trust check, per method, the ok frames off by more
+    than 5 deg or 10 px and the failure rate (mean over the sequences): every method's
+    estimates are made once without the check, and each variant of the check is applied to the
+    same estimates (docs/method.md, section 11, "Ambiguity")."""
+    from stabilizer.verification import VerificationParams, Verifier
+
+    loaded = [_frames(folder) for folder in folders]
+    found = {margin: {} for margin in candidate_margins}
+    for method in methods:
+        unchecked = [_estimates(frames, references, method, False, stride)[0]
+                     for frames, references, _, _ in loaded]
+        for margin in candidate_margins:
+            params = VerificationParams(candidate_margin=margin)
+            rows = []
+            for (frames, references, truth, truth_ok), motions in zip(loaded, unchecked):
+                checked, verifier, current = [], None, None
+                for index, motion in zip(range(0, len(frames), stride), motions):
+                    if references[index] != current:
+                        current = references[index]
+                        verifier = Verifier(frames[current], params)
+                    checked.append(verifier(frames[index], motion))
+                rows.append(_summary(checked, truth[::stride], truth_ok[::stride]))
+            found[margin][method] = (sum(row["large"] for row in rows),
+                                     100 * np.mean([row["failures"] for row in rows]))
+    for margin, by_method in found.items():
+        print(f"candidate_margin {margin:+.2f}: " + ", ".join(
+            f"{method} {large} large, {failures:.1f}%"
+            for method, (large, failures) in by_method.items()))
 
 
 def _summary(motions, truth, truth_ok) -> dict:
@@ -310,6 +343,13 @@ def main(argv: list[str] | None = None) -> int:
     overall.add_argument("folders", type=Path, nargs="+")
     overall.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
     overall.add_argument("--stride", type=int, default=2, help="score every n-th frame")
+    swept = commands.add_parser("margins", help="the check's candidate_margin, every method")
+    swept.add_argument("folders", type=Path, nargs="+")
+    swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
+                                                        "icp", "ecc", "fourier_mellin"])
+    swept.add_argument("--stride", type=int, default=2, help="score every n-th frame")
+    swept.add_argument("--values", type=float, nargs="+",
+                       default=[-0.1, -0.05, 0.03, 0.05, 0.08, 0.1])
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
     isolated.add_argument("folders", type=Path, nargs="+")
     drawer = commands.add_parser("figures", help="the failing frames of docs/method.md")
@@ -323,6 +363,8 @@ def main(argv: list[str] | None = None) -> int:
         table(_sequences(args.folders))
     elif args.command == "summary":
         summary(_sequences(args.folders), args.methods, args.stride)
+    elif args.command == "margins":
+        margins(_sequences(args.folders), args.methods, args.stride, args.values)
     elif args.command == "stage6":
         stage6(_sequences(args.folders))
     else:
