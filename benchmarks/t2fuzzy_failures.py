@@ -6,6 +6,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margin
+    python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -125,18 +127,25 @@ def _status_name(motion) -> str:
     return f"{motion.status}: {reason}" if reason else motion.status
 
 
-def summary(folders: list[Path], methods: list[str], stride: int) -> None:
+def summary(folders: list[Path], methods: list[str], stride: int,
+            refinements: dict | None = None) -> None:
     """One line per method over every sequence, through the trust check: the mean over the
     sequences of the ok frames' mean errors and of the failure rates, the ok frames off by more
-    than 5 deg or 10 px, the process CPU ms per frame, and the count of each status."""
+    than 5 deg or 10 px, the process CPU ms per frame, and the count of each status.
+    ``refinements``: settings of :class:`~stabilizer.t2fuzzy_refinements.Refinements` for the
+    ``t2fuzzy`` method (its defaults otherwise)."""
     from collections import Counter
+
+    from stabilizer.t2fuzzy_refinements import Refinements
 
     loaded = [_frames(folder) for folder in folders]
     for method in methods:
+        params = ({"refinements": Refinements(**refinements)}
+                  if refinements and method == "t2fuzzy" else {})
         rows, statuses, seconds, n_frames = [], Counter(), 0.0, 0
         for frames, references, truth, truth_ok in loaded:
             motions, spent = _estimates(frames, references, method, True, stride,
-                                        time.process_time)
+                                        time.process_time, **params)
             seconds, n_frames = seconds + spent, n_frames + len(motions)
             statuses.update(_status_name(m) for m in motions if m.status != "ok")
             rows.append(_summary(motions, truth[::stride], truth_ok[::stride]))
@@ -147,6 +156,38 @@ def summary(folders: list[Path], methods: list[str], stride: int) -> None:
               f"{1e3 * seconds / n_frames:.2f} ms/frame (CPU), {n_frames} frames of "
               f"{len(folders)} sequences")
         print("   " + ", ".join(f"{name} {count}" for name, count in statuses.most_common()))
+
+
+def overlap_climb_time(folders: list[Path], stride: int) -> None:
+    """Process CPU ms per frame of ``t2fuzzy`` (no trust check) with its defaults, with the
+    final climb on the whole overlap, and with that climb and no large template, the three
+    alternating frame by frame (docs/method.md, section 12)."""
+    from stabilizer import Stabilizer
+    from stabilizer.t2fuzzy_refinements import Refinements
+
+    variants = {"defaults": Refinements(),
+                "final_overlap_climb": Refinements(final_overlap_climb=True),
+                "final_overlap_climb, large_template_border_px=0":
+                    Refinements(final_overlap_climb=True, large_template_border_px=0)}
+    seconds, n_frames = dict.fromkeys(variants, 0.0), 0
+    for folder in folders:
+        frames, references, _, _ = _frames(folder)
+        current, trackers = None, {}
+        for index in range(0, len(frames), stride):
+            if references[index] != current:
+                current = references[index]
+                trackers = {name: Stabilizer(frames[current], "t2fuzzy", verification=None,
+                                             refinements=refinements)
+                            for name, refinements in variants.items()}
+            for name, tracker in trackers.items():
+                start = time.process_time()
+                tracker.estimate(frames[index])
+                seconds[name] += time.process_time() - start
+            n_frames += 1
+    load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
+    for name, spent in seconds.items():
+        print(f"{name}: {1e3 * spent / n_frames:.2f} ms/frame (CPU), {n_frames} frames")
+    print(f"load average {load}")
 
 
 def margins(folders: list[Path], methods: list[str], stride: int,
@@ -331,6 +372,16 @@ def _sequences(folders: list[Path]) -> list[Path]:
     return complete
 
 
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` with a Python literal value (True, 0, 1.5)."""
+    import ast
+
+    name, separator, value = text.partition("=")
+    if not separator:
+        raise SystemExit(f"--refinements {text!r}: accepted: NAME=VALUE")
+    return name.strip(), ast.literal_eval(value.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -343,6 +394,11 @@ def main(argv: list[str] | None = None) -> int:
     overall.add_argument("folders", type=Path, nargs="+")
     overall.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
     overall.add_argument("--stride", type=int, default=2, help="score every n-th frame")
+    overall.add_argument("--refinements", nargs="+", default=[], metavar="NAME=VALUE",
+                         help="t2fuzzy Refinements settings, e.g. final_overlap_climb=True")
+    timed = commands.add_parser("overlap-climb", help="t2fuzzy's time with the final climb")
+    timed.add_argument("folders", type=Path, nargs="+")
+    timed.add_argument("--stride", type=int, default=4, help="time every n-th frame")
     swept = commands.add_parser("margins", help="the check's candidate_margin, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
@@ -362,7 +418,10 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "table":
         table(_sequences(args.folders))
     elif args.command == "summary":
-        summary(_sequences(args.folders), args.methods, args.stride)
+        summary(_sequences(args.folders), args.methods, args.stride,
+                dict(_setting(text) for text in args.refinements))
+    elif args.command == "overlap-climb":
+        overlap_climb_time(_sequences(args.folders), args.stride)
     elif args.command == "margins":
         margins(_sequences(args.folders), args.methods, args.stride, args.values)
     elif args.command == "stage6":

@@ -253,3 +253,35 @@ def test_the_estimator_resolves_a_disagreement_only_when_asked_to():
     np.testing.assert_allclose(resolved.as_tuple(), truth.as_tuple(), atol=0.5)
     np.testing.assert_allclose(resolved.diagnostics["disagreeing_motion"],
                                failed.diagnostics["disagreeing_motion"])
+
+
+def test_the_final_overlap_climb_takes_a_motion_to_the_whole_overlaps_peak():
+    """A motion 3 degrees and a few pixels off the truth, climbed on the whole overlap, ends at
+    the truth."""
+    truth = Motion(8.0, 10.0, -5.0)
+    search, image, valid = _wide_search_setup(truth)
+    off = TemplateMatch(truth.dx + 3.0, truth.dy - 2.0, 0.9, False, 0.9)
+    angle, match = search.climb_on_overlap(truth.angle_deg - 3.0, off, image, valid)
+    np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
+
+
+def test_the_estimator_climbs_on_the_overlap_only_when_asked_to(monkeypatch):
+    """Off by default; on, the converged search ends with the climb, and the estimate is the
+    truth."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
+    truth = Motion(4.0, 9.0, -6.0)
+    current = apply_motion(reference, truth)
+    calls = []
+    climb = RotationSearch.climb_on_overlap
+
+    def counted(self, *args):
+        calls.append(args[0])
+        return climb(self, *args)
+
+    monkeypatch.setattr(RotationSearch, "climb_on_overlap", counted)
+    default = stabilizer.estimate(reference, current, verification=None)
+    assert calls == [] and default.ok
+    climbed = stabilizer.estimate(reference, current, verification=None,
+                                  refinements=Refinements(final_overlap_climb=True))
+    assert len(calls) == 1 and climbed.ok
+    np.testing.assert_allclose(climbed.as_tuple(), truth.as_tuple(), atol=0.5)
