@@ -236,9 +236,9 @@ class Verifier:
        nearby motion explains the frames clearly better (a wrong estimate that still overlaps
        some edges is not at the optimum);
     4. the best motion of a search independent of the estimate's shift (:meth:`candidate`:
-       over the grid of angles when the optimum is not convincing, correlation below
-       ``convincing_correlation``, or the estimate turns beyond the grid; else at the
-       estimate's angle; climbed to its own optimum unless it lies within the
+       at the estimate's angle when the optimum is convincing, correlation at least
+       ``convincing_correlation``; over the grid of angles when the estimate turns beyond
+       it; else over the grid, then at the estimate's angle; climbed to its own optimum unless it lies within the
        offset limits of the estimate's optimum) does not explain the frames about as well or
        better from beyond the offset limits (:meth:`_rival_candidate`): the estimate is not on
        a false peak, nor on one of two peaks the check cannot tell apart;
@@ -402,11 +402,14 @@ class Verifier:
         """A motion away from ``motion`` that explains the frames about as well or better, or
         None.
 
-        Searched over the grid of angles when the optimum near the estimate (``optimum``,
-        within the offset limits of ``motion``) is not convincing (its correlation below
-        ``convincing_correlation``) or the estimate turns by more than the grid's angles (plus
-        ``max_offset_deg``); otherwise at the estimate's own angle only. The
-        :meth:`candidate`, climbed to its :meth:`local_optimum`, wins when it lies beyond the
+        The :meth:`candidate` is searched at the estimate's own angle when the optimum near the
+        estimate (``optimum``, within the offset limits of ``motion``) is convincing (its
+        correlation at least ``convincing_correlation``); over the grid of angles when the
+        estimate turns by more than the grid's angles (plus ``max_offset_deg``); otherwise over
+        the grid, then, if that finds no rival, at the estimate's angle (the grid's sharpest
+        phase-correlation peak can be a poor explanation while a shift at the estimate's angle
+        explains the frames better). A candidate, climbed to its :meth:`local_optimum`, wins
+        when it lies beyond the
         offset limits of the estimate and correlates better than the estimate's optimum less
         ``candidate_margin`` (two peaks that close cannot be told apart); against an estimate
         outside the searched angles, less ``outside_margin``: a turn beyond the walking range
@@ -422,20 +425,27 @@ class Verifier:
         params = self.params
         widest = max(abs(angle) for angle in params.candidate_angles_deg)
         outside = abs(float(wrap_angle_deg(motion.angle_deg))) > widest + params.max_offset_deg
-        convincing = optimum_correlation >= params.convincing_correlation and not outside
+        own_angle = (motion.angle_deg,)
         # A convincing optimum may still be one of several shifts that line up a repeated
         # structure (two alike objects): the shift's search at the estimate's own rotation costs
         # a seventh of the grid's.
-        candidate = self.candidate(current_half, (motion.angle_deg,) if convincing else None)
-        if not self._beyond_offset(candidate, optimum):
-            return None
-        refined = self.local_optimum(current_half, candidate) or candidate
-        if not self._beyond_offset(refined, motion):
-            return None
-        correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
+        if outside:
+            searches = (None,)
+        elif optimum_correlation >= params.convincing_correlation:
+            searches = (own_angle,)
+        else:
+            searches = (None, own_angle)
         margin = params.outside_margin if outside else params.candidate_margin
-        if correlation > optimum_correlation - margin:
-            return refined, correlation
+        for angles in searches:
+            candidate = self.candidate(current_half, angles)
+            if not self._beyond_offset(candidate, optimum):
+                continue
+            refined = self.local_optimum(current_half, candidate) or candidate
+            if not self._beyond_offset(refined, motion):
+                continue
+            correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
+            if correlation > optimum_correlation - margin:
+                return refined, correlation
         return None
 
     def _beyond_offset(self, motion: Motion, other: Motion) -> bool:
