@@ -73,7 +73,7 @@ class VerificationParams:
         candidate_margin: that explanation fails the estimate when it correlates better than
             the estimate's optimum less this: the frames are then explained about as well
             elsewhere, and the check cannot tell which motion is right. Default 0.05: on walking
-            frames of the six methods it let 8 estimates off by more than 5 degrees or 10 px
+            frames of the six methods it let 4 estimates off by more than 5 degrees or 10 px
             pass where -0.1 (a candidate 0.1 better) let 21, for 0-0.5 points more failures
             (docs/method.md, section 11, "Ambiguity").
         outside_margin: the same margin against an estimate that turns beyond the searched
