@@ -383,14 +383,16 @@ class RunRecorder:
         self._frames_buffered = 0
         self._n_labels = -1
         self._closed = False
-        self._files = ExitStack()
-        temporary = self._files.enter_context(atomic_path(self.path))
-        self._stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-        self._stream.set_log_time_enabled(False)  # wall-clock time would make files differ
-        self._stream.save(temporary, default_blueprint=default_blueprint(self.methods))
-        self._log_static(dict(properties or {}))
-        if model is not None:
-            self._log_world(model)
+        # Interrupted or failing before it is made, the recorder leaves no temporary file.
+        with ExitStack() as files:
+            temporary = files.enter_context(atomic_path(self.path))
+            self._stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+            self._stream.set_log_time_enabled(False)  # wall-clock time would make files differ
+            self._stream.save(temporary, default_blueprint=default_blueprint(self.methods))
+            self._log_static(dict(properties or {}))
+            if model is not None:
+                self._log_world(model)
+            self._files = files.pop_all()
 
     # ------------------------------------------------------------------ setup
     def _log_static(self, properties: dict[str, Any]) -> None:

@@ -400,10 +400,11 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
     by ``estimations`` (method -> object with ``estimate(reference, frame) -> Estimate`` and
     ``analysis_ms``); returns metrics.json's content."""
     with stop_signals_interrupt():
-        scoring.start()
         bar = _progress_bar(source.n_frames, scoring.scenario.name, progress)
-        last_write = time.perf_counter()
         try:
+            # Started inside the try: an interrupt while the recording opens ends the run too.
+            scoring.start()
+            last_write = time.perf_counter()
             with source:
                 for item in source:
                     scoring.score_frame(item, estimations, source.intrinsics)
@@ -517,7 +518,7 @@ class Scoring:
             self.out_dir, scenario=self.scenario_dict, records=self.records,
             summary=summarize(self.records, self.itf), meta=self.meta,
             status=self.status if final else INCOMPLETE, plots=final,
-            recording=self.recording_path if final else None,
+            recording=self.recording_path if final and self.recorder is not None else None,
             # An interrupted run's pool may still hold estimation work: plots drawn here then.
             plot_pool=self.plot_pool if self.status in (COMPLETE, FELL) else None)
         return files.metrics

@@ -90,3 +90,26 @@ methods = ["ecc"]
     assert "interrupted" in statuses
     assert (out / "sweep.md").exists()
     assert not list(out.rglob(".*.tmp"))
+
+
+def test_a_run_stopped_while_its_recording_opens_ends_interrupted(tmp_path, monkeypatch):
+    """The stop comes after metrics.json says "incomplete" and before the first frame, while
+    the rerun recording is being set up: the run still ends "interrupted", with no recording
+    listed and no temporary file left."""
+    from sim.harness.recording import RunRecorder
+    from sim.harness.report import RECORDING_NOTE
+    from sim.harness.runner import RunConfig, run
+
+    def stopped(self, properties):
+        raise Interrupted("SIGTERM")
+
+    monkeypatch.setattr(RunRecorder, "_log_static", stopped)
+    run_dir = tmp_path / "run"
+    metrics = run(RunConfig(CI_CORRIDOR, str(run_dir), max_frames=2, methods=("ecc",),
+                            overrides={"recording.enabled": True}))
+    assert metrics["status"] == "interrupted"
+    assert metrics["run"]["message"] == "interrupted by SIGTERM"
+    assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
+    assert not (run_dir / "recording.rrd").exists()
+    assert RECORDING_NOTE not in (run_dir / "summary.md").read_text()
+    assert not list(run_dir.glob(".*.tmp"))
