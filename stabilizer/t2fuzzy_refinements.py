@@ -410,22 +410,6 @@ class RotationSearch:
         maximum of the correlation within ``max_rotation_deg``; with ``final_overlap_climb``,
         a converged estimate climbed on the whole overlap (:meth:`climb_on_overlap`).
 
-        Args: as for :meth:`search`.
-        """
-        angle, match, converged = self.search(angles, first_guess, image, near, valid)
-        if self.final_overlap_climb and converged and self.wide_shift is not None \
-                and np.isfinite(match.height):
-            climbed = self.climb_on_overlap(angle, match, image, valid)
-            if climbed is not None:
-                angle, match = climbed
-        return angle, match, converged
-
-    def search(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
-               near: tuple[float, float] | None = None,
-               valid: np.ndarray | None = None) -> tuple[float, TemplateMatch, bool]:
-        """The searched rotation, the FNCC match at it, and whether the climb ended at a local
-        maximum of the correlation within ``max_rotation_deg``.
-
         Args:
             angles: the rotation estimates of stage 4, degrees.
             first_guess: the thresholded rotation of stage 5.
@@ -434,6 +418,18 @@ class RotationSearch:
             valid: the current frame's measured pixels (bool), for the wide search; without
                 it, or with ``near``, the wide search is not run.
         """
+        angle, match, converged = self._search(angles, first_guess, image, near, valid)
+        if self.final_overlap_climb and converged and self.wide_shift is not None \
+                and np.isfinite(match.height):
+            climbed = self.climb_on_overlap(angle, match, image, valid)
+            if climbed is not None:
+                angle, match = climbed
+        return angle, match, converged
+
+    def _search(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
+                near: tuple[float, float] | None = None,
+                valid: np.ndarray | None = None) -> tuple[float, TemplateMatch, bool]:
+        """The search of :meth:`__call__` before the final climb on the whole overlap."""
         half = cv2.pyrDown(image)
         candidates = []
         # The identity too: when every group of estimates is wrong, no rotation is the
