@@ -67,9 +67,10 @@ class VerificationParams:
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). Default 10.
-        convincing_correlation: below this optimum correlation the check also looks for
-            another explanation away from the estimate (:meth:`Verifier.candidate`). Default
-            0.7: the median accurate walking estimate's optimum scores about 0.68.
+        convincing_correlation: below this optimum correlation the check looks for another
+            explanation over the grid of angles too, not only at the estimate's angle
+            (:meth:`Verifier.candidate`). Default 0.7: the median accurate walking estimate's
+            optimum scores about 0.68.
         candidate_margin: that explanation fails the estimate when it correlates better than
             the estimate's optimum less this: the frames are then explained about as well
             elsewhere, and the check cannot tell which motion is right. Default 0.05: on walking
@@ -237,11 +238,11 @@ class Verifier:
        some edges is not at the optimum);
     4. the best motion of a search independent of the estimate's shift (:meth:`candidate`:
        at the estimate's angle when the optimum is convincing, correlation at least
-       ``convincing_correlation``; over the grid of angles when the estimate turns beyond
-       it; else over the grid, then at the estimate's angle; climbed to its own optimum unless it lies within the
-       offset limits of the estimate's optimum) does not explain the frames about as well or
-       better from beyond the offset limits (:meth:`_rival_candidate`): the estimate is not on
-       a false peak, nor on one of two peaks the check cannot tell apart;
+       ``convincing_correlation``; over the grid of angles when the estimate turns beyond it;
+       else over the grid, then at the estimate's angle; climbed to its own optimum unless it
+       lies within the offset limits of the estimate's optimum) does not explain the frames
+       about as well or better from beyond the offset limits (:meth:`_rival_candidate`): the
+       estimate is not on a false peak, nor on one of two peaks the check cannot tell apart;
     5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
@@ -409,12 +410,11 @@ class Verifier:
         the grid, then, if that finds no rival, at the estimate's angle (the grid's sharpest
         phase-correlation peak can be a poor explanation while a shift at the estimate's angle
         explains the frames better). A candidate, climbed to its :meth:`local_optimum`, wins
-        when it lies beyond the
-        offset limits of the estimate and correlates better than the estimate's optimum less
-        ``candidate_margin`` (two peaks that close cannot be told apart); against an estimate
-        outside the searched angles, less ``outside_margin``: a turn beyond the walking range
-        must explain the frames clearly better than one within it (a half turn can line up a
-        point-symmetric object, say a box, as well as the truth).
+        when it lies beyond the offset limits of the estimate and correlates better than the
+        estimate's optimum less ``candidate_margin`` (two peaks that close cannot be told
+        apart); against an estimate outside the searched angles, less ``outside_margin``: a
+        turn beyond the walking range must explain the frames clearly better than one within it
+        (a half turn can line up a point-symmetric object, say a box, as well as the truth).
 
         A candidate within the offset limits of ``optimum`` agrees with the estimate and is not
         climbed: the climb from there ends at that optimum (of 393 such candidates on the walking

@@ -486,8 +486,8 @@ def bench_markdown(figures: dict) -> str:
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
               f"| the same, in process CPU time (a third run) | "
               f"{figures['rescore_t2fuzzy_cpu_realtime_factor']:.1f}x real time |",
-              f"| `egostab score`, every method, `--workers 2` against `--workers 1`, faster of two "
-              f"runs each | "
+              f"| `egostab score`, every method, `--workers 2` against `--workers 1`, faster of "
+              f"two runs each | "
               f"{figures['score_workers1_s'] / figures['score_workers2_s']:.2f}x faster "
               f"({figures['score_workers1_s']:.1f} s / {figures['score_workers2_s']:.1f} s) |",
               "", "t2fuzzy against SIFT on the varied synthetic corpus "
