@@ -517,13 +517,11 @@ class RotationSearch:
         if not meet and abs(top_a.height - top_b.height) < self.resolve_margin:
             return None
         angle, top, _ = climbs[0] if top_a.height >= top_b.height else climbs[1]
-        full_search = self.wide.near(half=False)
-        current = full_search.spectra(image, valid)
-        start = full_search.match(current, angle, (top.x, top.y))
-        if not np.isfinite(start.height):
-            return None
         # A climb beyond two steps is not kept: it need not be walked.
-        fine_angle, fine, converged = self._climb(full_search, current, angle, start, 2)
+        found = self._full_overlap_climb(angle, (top.x, top.y), image, valid, 2)
+        if found is None:
+            return None
+        start, (fine_angle, fine, converged) = found
         if converged and abs(fine_angle - angle) < 2.0 * self.step:
             return fine_angle, fine
         return angle, start
@@ -534,13 +532,23 @@ class RotationSearch:
         whole overlap near its own shift (:class:`OverlapNear`), at full resolution; None when
         the overlap has no defined correlation there or the climb finds no maximum (the motion
         is then kept as it is)."""
+        found = self._full_overlap_climb(angle, (match.x, match.y), image, valid)
+        if found is None:
+            return None
+        _, (angle, top, converged) = found
+        return (angle, top) if converged else None
+
+    def _full_overlap_climb(self, angle: float, shift: tuple[float, float], image: np.ndarray,
+                            valid: np.ndarray, max_steps: int | None = None
+                            ) -> tuple[TemplateMatch, tuple[float, TemplateMatch, bool]] | None:
+        """The whole overlap's full-resolution match at ``angle`` near ``shift``, and the climb
+        over rotation from it (:meth:`_climb`); None when the correlation is undefined there."""
         full_search = self.wide.near(half=False)
         current = full_search.spectra(image, valid)
-        start = full_search.match(current, angle, (match.x, match.y))
+        start = full_search.match(current, angle, shift)
         if not np.isfinite(start.height):
             return None
-        angle, top, converged = self._climb(full_search, current, angle, start)
-        return (angle, top) if converged else None
+        return start, self._climb(full_search, current, angle, start, max_steps)
 
     def refine_on_large_template(self, half: np.ndarray, image: np.ndarray, angle: float,
                                  match: TemplateMatch) -> tuple[float, TemplateMatch] | None:
