@@ -482,7 +482,8 @@ def bench_markdown(figures: dict) -> str:
               f"| SR4000 render + ToF, motion blur off | {figures['render_tof_fps']:.0f} frames/s |",
               *(f"| `egostab run` of the default scenario, {label} | {rtf:.2f}x real time |"
                 for label, rtf in figures["pipeline_realtime_factor"].items()),
-              f"| re-scoring t2fuzzy alone on the recorded default scenario, one core, faster of two runs | "
+              "| re-scoring t2fuzzy alone on the recorded default scenario, one core, faster of "
+              f"two runs | "
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
               f"| the same, in process CPU time (a third run) | "
               f"{figures['rescore_t2fuzzy_cpu_realtime_factor']:.1f}x real time |",
