@@ -89,19 +89,19 @@ def score(config: ScoreConfig) -> dict:
     with _method_estimations(sequence, methods, config.workers,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
         scoring.plot_pool = pool and pool.processes
-        return score_frames(SequenceFrames(sequence, truths=pool and pool.truth), scoring,
+        return score_frames(SequenceFrames(sequence, decoded=pool and pool.frame), scoring,
                             {**estimations, **file_methods}, config.progress)
 
 
 class SequenceFrames:
     """The frames of a loaded sequence as the scoring loop wants them (see SimulatedFrames).
 
-    ``truths``, when given, gives each frame's ground truth by index (computed elsewhere, e.g.
-    by the estimation workers); the frames are then read without their exact depth.
+    ``decoded``, when given, gives each frame by index, decoded elsewhere (by the estimation
+    workers, which read every frame anyway) without its exact depth, with its ground truth.
     """
 
-    def __init__(self, sequence, truths=None):
-        self.sequence, self.truths = sequence, truths
+    def __init__(self, sequence, decoded=None):
+        self.sequence, self.decoded = sequence, decoded
         self.n_frames = sequence.n_frames
         self.intrinsics = sequence.intrinsics
         self._done = 0
@@ -128,10 +128,10 @@ class SequenceFrames:
 
         for index in range(self.n_frames):
             row = self.sequence.rows[index]
-            frame = self.sequence.frame(index, exact=self.truths is None)
+            frame, truth = (self.decoded(index) if self.decoded
+                            else (self.sequence.frame(index), None))
             self._done = index + 1
-            yield SourceFrame(frame, row.gait_cycle, row.torso,
-                              truth=self.truths(index) if self.truths else None)
+            yield SourceFrame(frame, row.gait_cycle, row.torso, truth=truth)
 
 
 def _check_reference(sequence, reference, frame) -> None:
@@ -279,8 +279,9 @@ def _init_worker() -> None:
 
 
 _WORKER_SEQUENCES: dict[str, Any] = {}
-#: The key of a frame's ground truth among a worker's results (no method is named "").
-TRUTH = ""
+#: The key of a decoded frame and its ground truth among a worker's results (no method is
+#: named "").
+FRAME = ""
 
 
 def _without_images(estimate):
@@ -292,8 +293,9 @@ def _without_images(estimate):
 
 
 def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
-    """In a worker: every method's estimates of a chunk of frames and each frame's ground
-    truth (each frame read once), and the methods' analysis times."""
+    """In a worker: every method's estimates of a chunk of frames, each frame decoded (without
+    its exact depth, which only the truth needs) with its ground truth (each frame read once),
+    and the methods' analysis times."""
     from sim.harness.runner import MethodEstimation, frame_truth
     from sim.harness.sequence import load_sequence
 
@@ -309,7 +311,8 @@ def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
         if reference is None or reference.index != reference_index:
             reference = sequence.frame(reference_index)
         frame = sequence.frame(index)
-        estimates.append((TRUTH, index, frame_truth(reference, frame, sequence.intrinsics)))
+        estimates.append((FRAME, index, (dataclasses.replace(frame, true_depth_m=None),
+                                         frame_truth(reference, frame, sequence.intrinsics))))
         for method, estimation in estimations.items():
             estimate = estimation.estimate(reference, frame)
             estimates.append((method, index,
@@ -318,8 +321,8 @@ def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
 
 
 class _EstimationPool:
-    """Spawn workers estimating chunks of frames with every method, and computing their
-    ground truth; results are taken in task order."""
+    """Spawn workers estimating chunks of frames with every method, and decoding them with
+    their ground truth; results are taken in task order."""
 
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         import multiprocessing
@@ -341,9 +344,9 @@ class _EstimationPool:
         _check_reference(self.sequence, reference, frame)
         return self._take(method, frame.index)
 
-    def truth(self, index: int):
-        """The ground truth of frame ``index``."""
-        return self._take(TRUTH, index)
+    def frame(self, index: int):
+        """Frame ``index`` decoded without its exact depth, and its ground truth."""
+        return self._take(FRAME, index)
 
     def _take(self, method: str, index: int):
         while (method, index) not in self.ready:
