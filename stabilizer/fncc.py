@@ -357,9 +357,15 @@ class MaskedCorrelation:
         span = 2 * self.max_shift + 1  # the moving frame sits max_shift down and right
         return full[:span, :span]
 
-    def surface(self, fixed: MaskedSpectra, moving: MaskedSpectra) -> np.ndarray:
+    def surface(self, fixed: MaskedSpectra, moving: MaskedSpectra,
+                weighted: bool = False) -> np.ndarray:
         """NCC of ``fixed``(x) with ``moving``(x + d) for d in [-max_shift, max_shift]^2,
-        rows dy and columns dx; -inf where the overlap is too small or a frame is flat on it."""
+        rows dy and columns dx; -inf where the overlap is too small or a frame is flat on it.
+
+        ``weighted``: each NCC times sqrt(S_ff' S_gg' / (E_f E_g)), the geometric mean of the
+        shares of each frame's sum of squares E (about its mean, on all its valid pixels) that
+        the overlap's spreads S' hold: a shift that lines up only part of the frames then scores
+        below one that lines up all of them as well."""
         overlap = np.rint(self._correlation(fixed.mask, moving.mask))
         s_f = self._correlation(fixed.image, moving.mask)
         s_g = self._correlation(fixed.mask, moving.image)
@@ -369,10 +375,12 @@ class MaskedCorrelation:
             spread_f = self._correlation(fixed.square, moving.mask) - s_f * s_f * inverse_n
             spread_g = self._correlation(fixed.mask, moving.square) - s_g * s_g * inverse_n
             ncc = numerator / np.sqrt(spread_f * spread_g)
+            weight = (np.sqrt(spread_f * spread_g / (fixed.energy * moving.energy)) if weighted
+                      else 1.0)
         usable = ((overlap >= max(self.min_overlap * fixed.n_valid, 2.0))
                   & (spread_f > FLAT_SPREAD * fixed.energy)
                   & (spread_g > FLAT_SPREAD * moving.energy) & np.isfinite(ncc))
-        return np.where(usable, np.clip(ncc, -1.0, 1.0), -np.inf)
+        return np.where(usable, np.clip(ncc, -1.0, 1.0) * weight, -np.inf)
 
     def match(self, fixed: MaskedSpectra, moving: MaskedSpectra) -> TemplateMatch:
         """The shift d of the highest NCC, refined by a parabola along each axis."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stabilizer.fncc import MaskedCorrelation, surface_peak
 from stabilizer.motion import (
     Motion,
     image_centre,
@@ -30,6 +31,11 @@ from stabilizer.peers.preparation import even_dft_size
 
 #: Status of an estimate that fails the check (docs/method.md, section 11).
 UNVERIFIED = "unverified"
+#: How far (full-resolution pixels along each axis) :meth:`Verifier.shift_rival` looks for a
+#: rival shift. Farther shifts keep too little of the frames to outscore the estimate: on the
+#: walking frames of docs/method.md, section 11, the whole frame decided as this did, at 0.6x
+#: the cost.
+RIVAL_REACH_PX = 72
 #: Smallest clip limit of the edge responses (gray levels per pixel²): a scene of flat
 #: surfaces has a median response of 0, and its depth steps then count by their sign.
 MIN_CLIP = 0.01
@@ -68,15 +74,13 @@ class VerificationParams:
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). Default 10.
         convincing_correlation: below this optimum correlation the check looks for another
-            explanation over the grid of angles too, not only at the estimate's angle
-            (:meth:`Verifier.candidate`). Default 0.7: the median accurate walking estimate's
-            optimum scores about 0.68.
-        candidate_margin: that explanation fails the estimate when it correlates better than
-            the estimate's optimum less this: the frames are then explained about as well
-            elsewhere, and the check cannot tell which motion is right. Default 0.05: on walking
-            frames of the six methods it let 4 estimates off by more than 5 degrees or 10 px
-            pass where -0.1 (a candidate 0.1 better) let 21, for 0-0.5 points more failures
-            (docs/method.md, section 11, "Ambiguity").
+            explanation over the grid of angles too, not only among the shifts at the
+            estimate's angle (:meth:`Verifier.candidate`). Default 0.7: the median accurate
+            walking estimate's optimum scores about 0.68.
+        candidate_margin: another explanation fails the estimate when it scores better than
+            the estimate less this: the frames are then explained about as well elsewhere, and
+            the check cannot tell which motion is right. Default 0.05 (docs/method.md, section
+            11, "Ambiguity").
         outside_margin: the same margin against an estimate that turns beyond the searched
             angles, which must explain the frames clearly better than a turn within them.
             Default 0.1.
@@ -236,13 +240,12 @@ class Verifier:
     3. the estimate lies within ``max_offset_deg`` and ``max_offset_px`` of the optimum: no
        nearby motion explains the frames clearly better (a wrong estimate that still overlaps
        some edges is not at the optimum);
-    4. the best motion of a search independent of the estimate's shift (:meth:`candidate`:
-       at the estimate's angle when the optimum is convincing, correlation at least
-       ``convincing_correlation``; over the grid of angles when the estimate turns beyond it;
-       else over the grid, then at the estimate's angle; climbed to its own optimum unless it
-       lies within the offset limits of the estimate's optimum) does not explain the frames
-       about as well or better from beyond the offset limits (:meth:`_rival_candidate`): the
-       estimate is not on a false peak, nor on one of two peaks the check cannot tell apart;
+    4. no motion beyond the offset limits explains the frames about as well or better: not a
+       shift at the estimate's rotation (every shift is scored, :meth:`shift_rival`), nor,
+       unless the optimum is convincing (correlation at least ``convincing_correlation``) and
+       the estimate turns within the grid of angles, the best motion of a search over that grid
+       (:meth:`candidate`, climbed to its own optimum; :meth:`_rival_candidate`): the estimate
+       is not on a false peak, nor on one of two peaks the check cannot tell apart;
     5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
@@ -267,14 +270,19 @@ class Verifier:
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
         self._padded_shape = tuple(even_dft_size(n) for n in half.shape)
         self._reference_windowed = self._windowed(half)
-        # The grid's turn-backs depend on the frame size alone: made once per reference.
-        self._half_centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
-        self._turn_backs = [self._turn_back(angle) for angle in params.candidate_angles_deg]
-
-    def _turn_back(self, angle: float) -> tuple[float, np.ndarray, np.ndarray]:
-        """The angle, the half-resolution warp that turns a frame back by it, and its rotation."""
-        return (angle, cv2.getRotationMatrix2D(self._half_centre, -angle, 1.0),
-                rotation_matrix(math.radians(angle)))
+        # Every shift with an overlap, at half resolution (test 4).
+        reach = min(RIVAL_REACH_PX // 2, min(half.shape) - 1)
+        self._shifts = MaskedCorrelation(half.shape, reach, params.min_overlap)
+        self._reference_shifts = self._shifts.spectra(half, self._reference_half[1].view(bool),
+                                                      moving=False)
+        steps = np.arange(-reach, reach + 1)
+        self._within_offset = 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij")) \
+            <= params.max_offset_px
+        # The search's turn-backs depend on the frame size alone: made once per reference.
+        centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
+        self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
+                             rotation_matrix(math.radians(angle)))
+                            for angle in params.candidate_angles_deg]
 
     def _windowed(self, half: np.ndarray, padded: np.ndarray | None = None) -> np.ndarray:
         """A half-resolution edge image times the Hanning window, zero-padded to even DFT sizes
@@ -285,10 +293,9 @@ class Verifier:
         np.multiply(half, self._window, out=padded[:half.shape[0], :half.shape[1]])
         return padded
 
-    def candidate(self, current_half: tuple[np.ndarray, np.ndarray],
-                  angles_deg: tuple[float, ...] | None = None) -> Motion:
-        """The most likely motion over the angles ``angles_deg`` (default: the grid
-        ``candidate_angles_deg``), independent of any estimate's shift.
+    def candidate(self, current_half: tuple[np.ndarray, np.ndarray]) -> Motion:
+        """The most likely motion over the angle grid ``candidate_angles_deg``, independent of
+        any estimate.
 
         For each angle a, the current half-resolution edge image is turned back by a and the
         remaining shift t' found by phase correlation (``cv2.phaseCorrelate``); turning back
@@ -298,9 +305,7 @@ class Verifier:
         half, _ = current_half
         padded = np.zeros(self._padded_shape, np.float32)
         best_response, best = -math.inf, Motion(0.0, 0.0, 0.0)
-        turn_backs = (self._turn_backs if angles_deg is None
-                      else [self._turn_back(angle) for angle in angles_deg])
-        for angle, turn_back, turn in turn_backs:
+        for angle, turn_back, turn in self._turn_backs:
             derotated = cv2.warpAffine(half, turn_back, half.shape[::-1], flags=cv2.INTER_LINEAR)
             shift_half, response = cv2.phaseCorrelate(self._reference_windowed,
                                                       self._windowed(derotated, padded))
@@ -352,8 +357,10 @@ class Verifier:
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
         optimum); otherwise a failed Motion with the status ``"unverified"``, the same
         diagnostics, ``verify_failed`` (``"overlap"``, ``"correlation"``, ``"not_optimum"``,
-        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a rival candidate
-        adds ``verify_candidate`` and ``verify_candidate_correlation``) and the rejected
+        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a rival adds
+        ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
+        (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
+        estimate's score on the same scale) and the rejected
         estimate as ``unverified_motion``. A Motion that is already a failure is returned as it
         is."""
         if not motion.ok:
@@ -380,6 +387,13 @@ class Verifier:
                   "correlation" if max(correlation, optimum_correlation) < params.min_correlation
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px) else None)
+        if failed is None:
+            rival = self.shift_rival(current_half, motion)
+            if rival is not None:
+                failed = "ambiguous"
+                diagnostics.update(verify_candidate=rival[0].as_tuple(),
+                                   verify_candidate_correlation=rival[2],
+                                   verify_shift_correlation=rival[1])
         if failed is None:  # the search costs most of the check: only for what passed so far
             rival = self._rival_candidate(current_edges, current_half, motion, optimum,
                                            optimum_correlation)
@@ -396,25 +410,65 @@ class Verifier:
                                  unverified_motion=motion.as_tuple(), **diagnostics)
         return Motion(motion.angle_deg, motion.dx, motion.dy, diagnostics=diagnostics)
 
+    def shift_rival(self, current_half: tuple[np.ndarray, np.ndarray],
+                    motion: Motion) -> tuple[Motion, float, float] | None:
+        """A motion at the rotation of ``motion``, with a shift beyond the offset limits, that
+        lines the depth edges up about as well as the estimate or better; None if there is none.
+
+        The current frame's half-resolution edge image, compensated by ``motion``, is correlated
+        with the reference's at every shift that keeps ``min_overlap`` of the reference's
+        measured pixels, all at once (masked NCC, :class:`~stabilizer.fncc.MaskedCorrelation`,
+        Padfield 2012), each NCC weighted by the share of both frames' edges its overlap holds
+        (a shift that lines up one of two alike objects lines up half the edges). A peak of that
+        surface beyond the offset limits (a local maximum over its 3 x 3 neighbours, not the
+        flank of the estimate's own peak) that scores more than the best shift within them less
+        ``candidate_margin`` is a rival: a second object like the one the estimate lined up, or
+        a ridge along which the edges fit many shifts (a floor's horizon under a sideways
+        shift); the check cannot tell which motion is right.
+
+        Returns:
+            The rival (the estimate's rotation; its shift, refined by a parabola along each
+            axis and turned by that rotation, added to the estimate's), the best correlation
+            within the offset limits and the rival's.
+        """
+        half, measured = current_half
+        size = half.shape[::-1]
+        warp = motion_matrix(motion, self._reference[0].shape)
+        warp[:, 2] *= 0.5  # a half-resolution pixel is x / 2: the rotation stays
+        inverse = cv2.WARP_INVERSE_MAP
+        compensated = self._shifts.spectra(
+            cv2.warpAffine(half, warp, size, flags=cv2.INTER_LINEAR | inverse),
+            cv2.warpAffine(measured, warp, size, flags=cv2.INTER_NEAREST | inverse).view(bool),
+            moving=True)
+        scores = self._shifts.surface(self._reference_shifts, compensated, weighted=True)
+        here = float(scores[self._within_offset].max())
+        peaks = cv2.dilate(scores, np.ones((3, 3), np.uint8)) == scores
+        found = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, scores),
+                             self._shifts.max_shift)
+        if not (math.isfinite(here) and found.peak > here - self.params.candidate_margin):
+            return None
+        shift = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.array([found.x,
+                                                                                   found.y]))
+        return (Motion(motion.angle_deg, motion.dx + float(shift[0]), motion.dy + float(shift[1])),
+                here, found.peak)
+
     def _rival_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
                          current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
                          optimum: Motion, optimum_correlation: float
                          ) -> tuple[Motion, float] | None:
-        """A motion away from ``motion`` that explains the frames about as well or better, or
-        None.
+        """A motion at another rotation than ``motion`` that explains the frames about as well
+        or better, or None.
 
-        The :meth:`candidate` is searched at the estimate's own angle when the optimum near the
-        estimate (``optimum``, within the offset limits of ``motion``) is convincing (its
-        correlation at least ``convincing_correlation``); over the grid of angles when the
-        estimate turns by more than the grid's angles (plus ``max_offset_deg``); otherwise over
-        the grid, then, if that finds no rival, at the estimate's angle (the grid's sharpest
-        phase-correlation peak can be a poor explanation while a shift at the estimate's angle
-        explains the frames better). A candidate, climbed to its :meth:`local_optimum`, wins
-        when it lies beyond the offset limits of the estimate and correlates better than the
-        estimate's optimum less ``candidate_margin`` (two peaks that close cannot be told
-        apart); against an estimate outside the searched angles, less ``outside_margin``: a
-        turn beyond the walking range must explain the frames clearly better than one within it
-        (a half turn can line up a point-symmetric object, say a box, as well as the truth).
+        The :meth:`candidate` of the grid of angles is searched when the optimum near the
+        estimate (``optimum``, within the offset limits of ``motion``) is not convincing (its
+        correlation below ``convincing_correlation``) or the estimate turns by more than the
+        grid's angles (plus ``max_offset_deg``); the estimate's own rotation is searched by
+        :meth:`shift_rival`. The candidate, climbed to its :meth:`local_optimum`, wins when it
+        lies beyond the offset limits of the estimate and correlates better than the estimate's
+        optimum less ``candidate_margin`` (two peaks that close cannot be told apart); against
+        an estimate outside the searched angles, less ``outside_margin``: a turn beyond the
+        walking range must explain the frames clearly better than one within it (a half turn
+        can line up a point-symmetric object, say a box, as well as the truth).
 
         A candidate within the offset limits of ``optimum`` agrees with the estimate and is not
         climbed: the climb from there ends at that optimum (of 393 such candidates on the walking
@@ -425,28 +479,17 @@ class Verifier:
         params = self.params
         widest = max(abs(angle) for angle in params.candidate_angles_deg)
         outside = abs(float(wrap_angle_deg(motion.angle_deg))) > widest + params.max_offset_deg
-        own_angle = (motion.angle_deg,)
-        # A convincing optimum may still be one of several shifts that line up a repeated
-        # structure (two alike objects): the shift's search at the estimate's own rotation costs
-        # a seventh of the grid's.
-        if outside:
-            searches = (None,)
-        elif optimum_correlation >= params.convincing_correlation:
-            searches = (own_angle,)
-        else:
-            searches = (None, own_angle)
+        if not outside and optimum_correlation >= params.convincing_correlation:
+            return None
+        candidate = self.candidate(current_half)
+        if not self._beyond_offset(candidate, optimum):
+            return None
+        refined = self.local_optimum(current_half, candidate) or candidate
+        if not self._beyond_offset(refined, motion):
+            return None
+        correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
         margin = params.outside_margin if outside else params.candidate_margin
-        for angles in searches:
-            candidate = self.candidate(current_half, angles)
-            if not self._beyond_offset(candidate, optimum):
-                continue
-            refined = self.local_optimum(current_half, candidate) or candidate
-            if not self._beyond_offset(refined, motion):
-                continue
-            correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
-            if correlation > optimum_correlation - margin:
-                return refined, correlation
-        return None
+        return (refined, correlation) if correlation > optimum_correlation - margin else None
 
     def _beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""

@@ -189,3 +189,20 @@ def test_a_template_with_another_margin_matches_alike():
     found = large.match(current, motion.angle_deg, (motion.dx, motion.dy))
     assert (found.x, found.y) == (pytest.approx(motion.dx, abs=0.1),
                                   pytest.approx(motion.dy, abs=0.1))
+
+
+def test_weighted_scores_favour_the_shift_that_lines_up_all_of_the_frames():
+    """Stripes 58 px apart against themselves: one period's shift lines up its overlap as well
+    as the zero shift (NCC 1), but keeps only two thirds of the frames; weighted by the shares
+    of both frames' spread its overlap holds, it scores that much less."""
+    columns = np.arange(176, dtype=np.float32)
+    image = np.tile(100.0 + 50.0 * np.sin(2.0 * np.pi * columns / 58.0), (144, 1))
+    valid = np.ones(image.shape, bool)
+    correlation = MaskedCorrelation(image.shape, 60, 0.3)
+    fixed = correlation.spectra(image, valid, moving=False)
+    moving = correlation.spectra(image, valid, moving=True)
+    plain, weighted = (correlation.surface(fixed, moving, weighted=flag) for flag in (False, True))
+    period = (60, 60 + 58)  # rows dy, columns dx; the zero shift at (60, 60)
+    assert plain[60, 60] == pytest.approx(1.0, abs=1e-3) == weighted[60, 60]
+    assert plain[period] == pytest.approx(1.0, abs=1e-2)
+    assert weighted[period] == pytest.approx((176 - 58) / 176, abs=0.03)
