@@ -80,7 +80,7 @@ class VerificationParams:
         candidate_margin: another explanation fails the estimate when it scores better than
             the estimate less this: the frames are then explained about as well elsewhere, and
             the check cannot tell which motion is right. Default 0.05 (docs/method.md, section
-            11, "Ambiguity").
+            11, "Ambiguity" and "Every shift").
         outside_margin: the same margin against an estimate that turns beyond the searched
             angles, which must explain the frames clearly better than a turn within them.
             Default 0.1.
