@@ -144,6 +144,25 @@ def test_an_estimate_that_lines_a_box_up_with_its_twin_is_ambiguous(box_shift):
     assert Verifier(reference)(current, truth).ok
 
 
+@pytest.mark.parametrize("seeds, shape, sideways", [
+    ((231385369, 1315371968), (218, 151), Motion(1.0, -72.0, 1.8)),
+    ((303412538, 1902831920), (238, 127), Motion(0.1, 72.0, -0.4)),
+])
+def test_a_sideways_estimate_between_unrelated_scenes_on_one_floor_is_ambiguous(seeds, shape,
+                                                                               sideways):
+    """Two unrelated two-object scenes on one floor (cases of benchmarks/trust_properties.py,
+    seed 5, where `t2fuzzy` returned these motions): the floor's horizon lines up under any
+    sideways shift, so the shift search at the estimate's rotation finds another shift along it
+    that lines up about as much of the frames."""
+    reference, current = (stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=2,
+                                                                          floor=True))
+                          for seed in seeds)
+    checked = Verifier(reference)(current, sideways)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
+    rival = Motion(*checked.diagnostics["verify_candidate"])
+    assert abs(rival.dx - sideways.dx) > 10.0 and abs(rival.dy - sideways.dy) < 3.0
+
+
 def test_candidate_margin_is_how_much_worse_a_rival_may_be_and_still_fail_the_estimate():
     reference, current, truth = twin_boxes()
     wrong = Motion(truth.angle_deg, truth.dx - 70.0, truth.dy)
