@@ -75,8 +75,9 @@ class VerificationParams:
             termination epsilon of ``cv2.findTransformECC``). Default 10.
         convincing_correlation: below this optimum correlation the check looks for another
             explanation over the grid of angles too, not only among the shifts at the
-            estimate's angle (:meth:`Verifier.candidate`). Default 0.7: the median accurate
-            walking estimate's optimum scores about 0.68.
+            estimate's angle (:meth:`Verifier.candidate`), and an estimate that turns beyond
+            the grid (plus ``max_offset_deg``), where no search looks, is ambiguous. Default
+            0.7: the median accurate walking estimate's optimum scores about 0.68.
         candidate_margin: another explanation fails the estimate when it scores better than
             the estimate less this: the frames are then explained about as well elsewhere, and
             the check cannot tell which motion is right. Default 0.05 (docs/method.md, section
@@ -240,7 +241,10 @@ class Verifier:
     3. the estimate lies within ``max_offset_deg`` and ``max_offset_px`` of the optimum: no
        nearby motion explains the frames clearly better (a wrong estimate that still overlaps
        some edges is not at the optimum);
-    4. no motion beyond the offset limits explains the frames about as well or better: not a
+    4. an estimate that turns beyond the searched angles ``candidate_angles_deg`` (plus
+       ``max_offset_deg``) has a convincing optimum (correlation at least
+       ``convincing_correlation``): no search looks for rivals that far out; and no motion
+       beyond the offset limits explains the frames about as well or better: not a
        shift at the estimate's rotation (every shift is scored, :meth:`shift_rival`), nor,
        unless the optimum is convincing (correlation at least ``convincing_correlation``) and
        the estimate turns within the grid of angles, the best motion of a search over that grid
@@ -357,7 +361,8 @@ class Verifier:
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
         optimum); otherwise a failed Motion with the status ``"unverified"``, the same
         diagnostics, ``verify_failed`` (``"overlap"``, ``"correlation"``, ``"not_optimum"``,
-        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a rival adds
+        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a turn beyond the searched
+        angles without a convincing optimum adds ``verify_beyond_search`` (True), a rival
         ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
         (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
         estimate's score on the same scale) and the rejected
@@ -387,6 +392,12 @@ class Verifier:
                   "correlation" if max(correlation, optimum_correlation) < params.min_correlation
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px) else None)
+        beyond = self._beyond_search(motion)
+        if failed is None and beyond and optimum_correlation < params.convincing_correlation:
+            # No search looks for rivals near a turn beyond the grid of angles: only a
+            # convincing optimum vouches for it.
+            failed = "ambiguous"
+            diagnostics["verify_beyond_search"] = True
         if failed is None:
             rival = self.shift_rival(current_half, motion)
             if rival is not None:
@@ -396,7 +407,7 @@ class Verifier:
                                    verify_shift_correlation=rival[1])
         if failed is None:  # the search costs most of the check: only for what passed so far
             rival = self._rival_candidate(current_edges, current_half, motion, optimum,
-                                           optimum_correlation)
+                                           optimum_correlation, beyond)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
@@ -454,7 +465,7 @@ class Verifier:
 
     def _rival_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
                          current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
-                         optimum: Motion, optimum_correlation: float
+                         optimum: Motion, optimum_correlation: float, beyond: bool
                          ) -> tuple[Motion, float] | None:
         """A motion at another rotation than ``motion`` that explains the frames about as well
         or better, or None.
@@ -477,9 +488,7 @@ class Verifier:
         limits of the estimate measured: it cannot fail the estimate.
         """
         params = self.params
-        widest = max(abs(angle) for angle in params.candidate_angles_deg)
-        outside = abs(float(wrap_angle_deg(motion.angle_deg))) > widest + params.max_offset_deg
-        if not outside and optimum_correlation >= params.convincing_correlation:
+        if not beyond and optimum_correlation >= params.convincing_correlation:
             return None
         candidate = self.candidate(current_half)
         if not self._beyond_offset(candidate, optimum):
@@ -488,8 +497,15 @@ class Verifier:
         if not self._beyond_offset(refined, motion):
             return None
         correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
-        margin = params.outside_margin if outside else params.candidate_margin
+        margin = params.outside_margin if beyond else params.candidate_margin
         return (refined, correlation) if correlation > optimum_correlation - margin else None
+
+    def _beyond_search(self, motion: Motion) -> bool:
+        """Whether ``motion`` turns beyond the searched angles ``candidate_angles_deg`` by more
+        than ``max_offset_deg``."""
+        widest = max(abs(angle) for angle in self.params.candidate_angles_deg)
+        return (abs(float(wrap_angle_deg(motion.angle_deg)))
+                > widest + self.params.max_offset_deg)
 
     def _beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""

@@ -163,6 +163,34 @@ def test_a_sideways_estimate_between_unrelated_scenes_on_one_floor_is_ambiguous(
     assert abs(rival.dx - sideways.dx) > 10.0 and abs(rival.dy - sideways.dy) < 3.0
 
 
+@pytest.mark.parametrize("seeds, shape, n_objects, turn", [
+    ((1353811672, 2130526010), (106, 207), 3, Motion(-25.61, -15.48, -23.29)),
+    ((154819200, 1855014848), (221, 122), 2, Motion(31.65, -59.8, 28.91)),
+])
+def test_a_turn_beyond_the_searched_angles_without_a_convincing_optimum_is_ambiguous(
+        seeds, shape, n_objects, turn):
+    """Two unrelated scenes without a floor (cases of benchmarks/trust_properties.py, seeds 77
+    and 123, where `icp` returned these turns): one object lined up with another scores like a
+    noisy true match, and no search looks for rivals that far out, so only a convincing optimum
+    could vouch for the turn. With the turn among the searched angles the same estimate passes:
+    the rule is what fails it."""
+    reference, current = (stabilizer.depth_to_disparity(
+        make_depth_scene(seed, shape, n_objects=n_objects, floor=False)) for seed in seeds)
+    checked = Verifier(reference)(current, turn)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
+    assert checked.diagnostics["verify_beyond_search"] is True
+    assert checked.diagnostics["verify_optimum_correlation"] < 0.7
+    wide = VerificationParams(candidate_angles_deg=(-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0))
+    assert Verifier(reference, wide)(current, turn).ok
+
+
+def test_a_true_turn_beyond_the_searched_angles_passes_when_its_optimum_is_convincing():
+    truth = Motion(25.0, 6.0, -4.0)
+    checked = Verifier(REFERENCE)(apply_motion(REFERENCE, truth), truth)
+    assert checked.ok
+    assert checked.diagnostics["verify_optimum_correlation"] >= 0.7
+
+
 def test_candidate_margin_is_how_much_worse_a_rival_may_be_and_still_fail_the_estimate():
     reference, current, truth = twin_boxes()
     wrong = Motion(truth.angle_deg, truth.dx - 70.0, truth.dy)
