@@ -54,6 +54,12 @@ def _method_list(text: str) -> tuple[str, ...]:
     return available_methods() if text == "all" else _methods(text)
 
 
+def _worker_count(text: str) -> int:
+    if not text.strip().isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: an integer >= 1")
+    return int(text)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from sim.harness.runner import RunConfig, run, scenario_name
     from sim.harness.report import terminal_summary
@@ -65,7 +71,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / scenario_name(args.scenario))
     metrics = run(RunConfig(scenario=args.scenario, out_dir=str(out_dir), methods=args.methods,
                             record=not args.no_record, max_frames=args.max_frames,
-                            seed=args.seed, progress=not args.quiet))
+                            seed=args.seed, progress=not args.quiet, workers=args.workers))
     print(terminal_summary(metrics, out_dir))
     if metrics["run"].get("message"):
         print(f"Note: {metrics['run']['message']}")
@@ -106,8 +112,6 @@ def _cmd_score(args: argparse.Namespace) -> int:
     estimates = dict(args.estimates or ())
     if len(estimates) != len(args.estimates or ()):
         raise ValueError("--estimates: a name given twice; accepted: each NAME once")
-    if args.workers < 1:
-        raise ValueError(f"--workers {args.workers}: accepted: an integer >= 1")
     load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
     out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / Path(args.sequence).name)
     metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
@@ -223,6 +227,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "built-in ones (default: the scenario's)")
     _add_simulation_arguments(run, "run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    run.add_argument("--workers", type=_worker_count, default=1,
+                     help="processes running the methods beside the simulation, one thread "
+                          "each (default 1: the methods run in this process)")
     run.set_defaults(handler=_cmd_run)
 
     recorder = commands.add_parser(
@@ -246,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "[, status]; named NAME or the file's stem; repeatable")
     scorer.add_argument("--out", type=Path, default=None,
                         help="run folder (default: results/<sequence folder name>)")
-    scorer.add_argument("--workers", type=int, default=1,
+    scorer.add_argument("--workers", type=_worker_count, default=1,
                         help="processes running the methods, one thread each (default 1)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     scorer.add_argument("--quiet", action="store_true", help="no progress bar")

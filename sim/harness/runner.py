@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -59,6 +59,8 @@ class RunConfig:
         overrides: dotted scenario keys -> values applied before validation, for sweeps
             (for example ``{"sensor.noise_scale": 2.0}``).
         progress: show a progress bar.
+        workers: processes that run the methods, each frame's estimates started as soon as
+            it is rendered (``sim.harness.pipeline``); 1 = this process.
     """
 
     scenario: str
@@ -69,6 +71,7 @@ class RunConfig:
     seed: int | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     progress: bool = False
+    workers: int = 1
 
 
 def scenario_name(scenario: str | os.PathLike) -> str:
@@ -334,6 +337,14 @@ class Estimate:
     ms: float
     compensated: Any
 
+    def without_images(self) -> "Estimate":
+        """The estimate with its motion's diagnostic arrays (segmentations, subbands) left
+        out: a recording shows them, nothing else reads them, and a worker process's estimate
+        costs less to send back without them."""
+        kept = {key: value for key, value in self.motion.diagnostics.items()
+                if not isinstance(value, np.ndarray)}
+        return replace(self, motion=replace(self.motion, diagnostics=kept))
+
 
 class MethodEstimation:
     """A method's estimates in this process, analysing each reference once."""
@@ -365,14 +376,28 @@ def run(config: RunConfig) -> dict:
     says "incomplete" (written at the start and at every checkpoint); it is written last, so
     a second interrupt during the final write leaves the folder saying so.
     """
+    if isinstance(config.workers, bool) or not isinstance(config.workers, int) \
+            or config.workers < 1:
+        raise ValueError(f"workers must be an integer >= 1; got {config.workers!r}")
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     scoring = Scoring(scenario, methods, Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,
-                      meta={"max_frames": config.max_frames}, world_model=source.robot.model)
-    estimations = {method: MethodEstimation(method) for method in methods}
-    return score_frames(PrefetchedFrames(source), scoring, estimations, config.progress)
+                      meta={"max_frames": config.max_frames, "workers": config.workers},
+                      world_model=source.robot.model)
+    if config.workers == 1:
+        estimations = {method: MethodEstimation(method) for method in methods}
+        return score_frames(PrefetchedFrames(source), scoring, estimations, config.progress)
+    from sim.harness.pipeline import PipelinedFrames
+    from sim.harness.threads import single_thread_pool
+
+    with single_thread_pool(config.workers) as pool:
+        frames = PipelinedFrames(PrefetchedFrames(source), methods, pool,
+                                 scenario.evaluation.reference,
+                                 keep_images=scoring.recording_path is not None)
+        scoring.plot_pool = pool
+        return score_frames(frames, scoring, frames.estimations, config.progress)
 
 
 def _configured_scenario(scenario: str, seed: int | None, overrides: Mapping[str, Any]):
@@ -456,7 +481,7 @@ class Scoring:
         self.status, self.message = COMPLETE, ""
         self.recorder = None
         self.world_model = world_model  # the recording's 3-D scene; None for a sequence
-        self.plot_pool = None  # a process pool that draws the final plots (score --workers)
+        self.plot_pool = None  # a process pool that draws the final plots (--workers)
         self.wall_start = math.nan
 
     def start(self) -> None:

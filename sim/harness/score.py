@@ -268,28 +268,10 @@ def reference_chunks(reference_frames: list[int], n_chunks: int) -> list[list[in
     return chunks
 
 
-def _init_worker() -> None:
-    import signal
-
-    from sim.harness.threads import limit_threads
-
-    # Ctrl-C reaches the whole process group: the parent ends the work and the workers.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    limit_threads()
-
-
 _WORKER_SEQUENCES: dict[str, Any] = {}
 #: The key of a decoded frame and its ground truth among a worker's results (no method is
 #: named "").
 FRAME = ""
-
-
-def _without_images(estimate):
-    """``estimate`` with its motion's diagnostic arrays (segmentations, subbands) left out."""
-    kept = {key: value for key, value in estimate.motion.diagnostics.items()
-            if not isinstance(value, np.ndarray)}
-    return dataclasses.replace(estimate,
-                               motion=dataclasses.replace(estimate.motion, diagnostics=kept))
 
 
 def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
@@ -316,7 +298,7 @@ def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
         for method, estimation in estimations.items():
             estimate = estimation.estimate(reference, frame)
             estimates.append((method, index,
-                              estimate if keep_images else _without_images(estimate)))
+                              estimate if keep_images else estimate.without_images()))
     return estimates, {method: e.analysis_ms for method, e in estimations.items()}
 
 
@@ -325,17 +307,13 @@ class _EstimationPool:
     their ground truth; results are taken in task order."""
 
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
-        import multiprocessing
-
-        from sim.harness.threads import single_thread_environment
+        from sim.harness.threads import single_thread_pool
 
         self.sequence = sequence
         chunks = reference_chunks([row.reference_frame for row in sequence.rows],
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
-        with single_thread_environment():
-            self.processes = multiprocessing.get_context("spawn").Pool(
-                min(workers, len(tasks)), initializer=_init_worker)
+        self.processes = single_thread_pool(min(workers, len(tasks)))
         self.results = self.processes.imap(_estimate_chunk, tasks)
         self.ready: dict[tuple[str, int], Any] = {}
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}

@@ -1,6 +1,7 @@
 """One OpenCV and one BLAS/OpenMP thread per process where estimates run.
 
-Parallelism comes from processes (``score --workers``, sweeps, suites, Ray); a library's own
+Parallelism comes from processes (``run --workers``, ``score --workers``, sweeps, suites, Ray;
+:func:`single_thread_pool` starts local ones); a library's own
 thread pool on top of them oversubscribes the cores. On the 2-core machine of issue 13, pinning
 both made a six-method run 1.5-2x faster with 44 % less CPU and identical estimates.
 
@@ -49,3 +50,21 @@ def single_thread_environment() -> Iterator[None]:
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
+
+
+def single_thread_pool(processes: int):
+    """A pool of ``processes`` spawn processes, each on one OpenCV and one BLAS/OpenMP thread
+    and deaf to Ctrl-C (it reaches the whole process group: the parent ends the work and
+    terminates the pool). A context manager that terminates the pool on exit."""
+    import multiprocessing
+
+    with single_thread_environment():
+        return multiprocessing.get_context("spawn").Pool(processes,
+                                                         initializer=_init_single_thread_worker)
+
+
+def _init_single_thread_worker() -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    limit_threads()

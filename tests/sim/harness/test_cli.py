@@ -151,6 +151,15 @@ def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
         assert problem in _one_line_error(capsys, command[0])
 
 
+@pytest.mark.parametrize("command", [["run"], ["score", "no_sequence"]])
+@pytest.mark.parametrize("count", ["0", "-2", "two"])
+def test_a_bad_worker_count_is_refused(command, count, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*command, "--workers", count])
+    assert exit_info.value.code == 2
+    assert f"--workers: {count!r}: accepted: an integer >= 1" in capsys.readouterr().err
+
+
 def test_a_method_given_twice_is_refused(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["run", "--methods", "sift,ecc,sift", "--max-frames", "2"])

@@ -1,0 +1,73 @@
+"""`egostab run --workers N` (sim.harness.pipeline): the estimates made ahead in worker processes
+give the figures and the recording of one process; an interrupt still leaves complete files and
+no worker behind."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+
+import pytest
+
+import sim.harness.ground_truth
+from sim.harness.runner import RunConfig, run
+from tests.sim.harness.test_recording import _rows_per_entity
+from tests.sim.harness.test_score import CI_CORRIDOR, _rows, _same_rows, _same_summary, _summary
+
+METHODS = ("t2fuzzy", "ecc")
+N_FRAMES = 12
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pipeline")
+    for workers in (1, 2):
+        run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(root / f"w{workers}"), methods=METHODS,
+                      max_frames=N_FRAMES, workers=workers,
+                      overrides={"recording.enabled": True, "recording.frame_stride": 1}))
+    return root
+
+
+def test_two_workers_give_the_figures_of_one(runs):
+    _same_rows(_rows(runs / "w1"), _rows(runs / "w2"))
+    _same_summary(_summary(runs / "w1"), _summary(runs / "w2"))
+    metrics = json.loads((runs / "w2" / "metrics.json").read_text())
+    assert metrics["status"] == "complete" and metrics["run"]["frames_done"] == N_FRAMES
+    assert metrics["run"]["workers"] == 2
+    assert sorted(path.name for path in (runs / "w1").glob("*.png")) == \
+        sorted(path.name for path in (runs / "w2").glob("*.png"))
+
+
+def test_two_workers_record_what_one_process_records(runs):
+    # The segmentation of the paper's method comes back from the workers with the estimates.
+    one, two = (_rows_per_entity(runs / name / "recording.rrd") for name in ("w1", "w2"))
+    assert one == two
+    assert any("segmentation" in entity or "labels" in entity for entity in two)
+
+
+def test_an_interrupted_run_with_workers_leaves_complete_files_and_no_worker(tmp_path,
+                                                                            monkeypatch):
+    real = sim.harness.ground_truth.ground_truth
+    calls = []
+
+    def interrupt_on_sixth(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 6:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_sixth)
+    metrics = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path), methods=METHODS,
+                            max_frames=N_FRAMES, workers=2, record=False))
+    assert metrics["status"] == "interrupted"
+    assert len(_rows(tmp_path)) == 5 * len(METHODS)
+    assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "interrupted"
+    assert not list(tmp_path.glob(".*.tmp"))
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("workers", [0, -1, True, 1.5])
+def test_a_bad_worker_count_is_refused_before_any_work(tmp_path, workers):
+    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+        run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"), workers=workers))
+    assert not (tmp_path / "run").exists()
