@@ -393,7 +393,7 @@ def run(config: RunConfig) -> dict:
     from sim.harness.threads import single_thread_pool
 
     with single_thread_pool(config.workers) as pool:
-        frames = PipelinedFrames(PrefetchedFrames(source), methods, pool,
+        frames = PipelinedFrames(PrefetchedFrames(source), methods, pool, config.workers,
                                  scenario.evaluation.reference,
                                  keep_images=scoring.recording_path is not None)
         scoring.plot_pool = pool
