@@ -9,7 +9,6 @@ import multiprocessing
 
 import pytest
 
-import sim.harness.ground_truth
 from sim.harness.runner import RunConfig, run
 from tests.sim.harness.test_recording import _rows_per_entity
 from tests.sim.harness.test_score import CI_CORRIDOR, _rows, _same_rows, _same_summary, _summary
@@ -45,18 +44,9 @@ def test_two_workers_record_what_one_process_records(runs):
     assert any("segmentation" in entity or "labels" in entity for entity in two)
 
 
-def test_an_interrupted_run_with_workers_leaves_complete_files_and_no_worker(tmp_path,
-                                                                            monkeypatch):
-    real = sim.harness.ground_truth.ground_truth
-    calls = []
-
-    def interrupt_on_sixth(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 6:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_sixth)
+def test_an_interrupted_run_with_workers_leaves_complete_files_and_no_worker(
+        tmp_path, interrupt_ground_truth):
+    interrupt_ground_truth(6)
     metrics = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path), methods=METHODS,
                             max_frames=N_FRAMES, workers=2, record=False))
     assert metrics["status"] == "interrupted"

@@ -8,7 +8,6 @@ import json
 import numpy as np
 import pytest
 
-import sim.harness.ground_truth
 import sim.harness.report
 import sim.harness.runner
 from scenarios import SCENARIOS_DIR
@@ -74,17 +73,8 @@ def test_reference_policies(tmp_path, policy):
         assert references == [0] + list(range(11))
 
 
-def test_interrupt_ends_cleanly_with_complete_files(tmp_path, monkeypatch):
-    real = sim.harness.ground_truth.ground_truth
-    calls = []
-
-    def interrupt_on_sixth(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 6:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_sixth)
+def test_interrupt_ends_cleanly_with_complete_files(tmp_path, interrupt_ground_truth):
+    interrupt_ground_truth(6)
     metrics, run_dir = _short_run(tmp_path, record=True)
     assert metrics["status"] == "interrupted"
     assert "interrupted" in metrics["run"]["message"]
@@ -95,23 +85,15 @@ def test_interrupt_ends_cleanly_with_complete_files(tmp_path, monkeypatch):
 
 
 def test_a_second_interrupt_during_the_final_write_leaves_the_folder_saying_incomplete(
-        tmp_path, monkeypatch):
-    real_ground_truth = sim.harness.ground_truth.ground_truth
+        tmp_path, monkeypatch, interrupt_ground_truth):
     real_write = sim.harness.report.write_run_outputs
-    calls = []
-
-    def interrupt_on_fourth(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 4:
-            raise KeyboardInterrupt
-        return real_ground_truth(*args, **kwargs)
 
     def interrupted_again_in_the_final_write(run_dir, **kwargs):
         if kwargs["plots"]:
             raise KeyboardInterrupt
         return real_write(run_dir, **kwargs)
 
-    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_fourth)
+    interrupt_ground_truth(4)
     monkeypatch.setattr(sim.harness.report, "write_run_outputs",
                         interrupted_again_in_the_final_write)
     with pytest.raises(KeyboardInterrupt):

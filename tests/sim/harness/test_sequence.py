@@ -94,19 +94,9 @@ def test_a_damaged_frame_image_is_refused_when_read(sequence_dir, tmp_path):
         sequence.frame(2)
 
 
-def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path, monkeypatch):
-    import sim.harness.ground_truth
-
-    real = sim.harness.ground_truth.ground_truth
-    calls = []
-
-    def interrupt_on_fourth(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 4:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", interrupt_on_fourth)
+def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path,
+                                                                  interrupt_ground_truth):
+    interrupt_ground_truth(4)
     header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
                                  max_frames=N_FRAMES))
     assert header["ended"] == "interrupted" and "interrupted" in header["message"]
