@@ -33,3 +33,13 @@ def test_a_thread_count_the_user_set_is_kept():
 def test_the_egostab_command_limits_threads_first():
     out = _python("import sys; from sim.harness.cli import main; main(['list']); " + PROBE)
     assert out[-3:] == ["1", "1", "1"]
+
+
+def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ignore_ctrl_c():
+    probe = ("(__import__('cv2').getNumThreads(), __import__('os').environ['OMP_NUM_THREADS'], "
+             "max(p['num_threads'] for p in __import__('threadpoolctl').threadpool_info()), "
+             "__import__('signal').getsignal(2) == __import__('signal').SIG_IGN)")
+    out = _python("from sim.harness.threads import single_thread_pool\n"
+                  "with single_thread_pool(1) as pool:\n"
+                  f"    print(*pool.apply(eval, ({probe!r},)))")
+    assert out == ["1", "1", "1", "True"]
