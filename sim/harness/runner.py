@@ -29,6 +29,7 @@ import numpy as np
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
 from sim.harness.methods import Estimator, method_factory
+from sim.harness.threads import check_worker_count
 from stabilizer import compensate
 from stabilizer.motion import Motion
 
@@ -376,9 +377,7 @@ def run(config: RunConfig) -> dict:
     says "incomplete" (written at the start and at every checkpoint); it is written last, so
     a second interrupt during the final write leaves the folder saying so.
     """
-    if isinstance(config.workers, bool) or not isinstance(config.workers, int) \
-            or config.workers < 1:
-        raise ValueError(f"workers must be an integer >= 1; got {config.workers!r}")
+    check_worker_count(config.workers)
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))

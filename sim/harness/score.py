@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-import numpy as np
-
 #: Chunks per worker: many, so that no worker is left alone with a long chunk at the end (a
 #: chunk is cut only where the reference changes, so each reference is still analysed once).
 CHUNKS_PER_WORKER = 16
@@ -66,10 +64,9 @@ def score(config: ScoreConfig) -> dict:
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict
     from sim.harness.sequence import SEQUENCE_JSON, load_sequence
+    from sim.harness.threads import check_worker_count
 
-    if isinstance(config.workers, bool) or not isinstance(config.workers, int) \
-            or config.workers < 1:
-        raise ValueError(f"workers must be an integer >= 1; got {config.workers!r}")
+    check_worker_count(config.workers)
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
     file_methods = {name: FileEstimation(path, sequence) for name, path in

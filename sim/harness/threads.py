@@ -52,6 +52,12 @@ def single_thread_environment() -> Iterator[None]:
                 os.environ[name] = value
 
 
+def check_worker_count(workers) -> None:
+    """A ValueError unless ``workers``, a number of worker processes, is an integer >= 1."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+
+
 def single_thread_pool(processes: int):
     """A pool of ``processes`` spawn processes, each on one OpenCV and one BLAS/OpenMP thread
     and deaf to Ctrl-C (it reaches the whole process group: the parent ends the work and
