@@ -380,6 +380,8 @@ def run(config: RunConfig) -> dict:
     check_worker_count(config.workers)
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
+    for method in methods:  # a method that cannot be loaded is reported before any work
+        method_factory(method)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     scoring = Scoring(scenario, methods, Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,

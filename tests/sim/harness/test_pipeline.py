@@ -9,6 +9,7 @@ import multiprocessing
 
 import pytest
 
+from sim.harness.methods import MethodError
 from sim.harness.runner import RunConfig, run
 from tests.sim.harness.test_recording import _rows_per_entity
 from tests.sim.harness.test_score import CI_CORRIDOR, _rows, _same_rows, _same_summary, _summary
@@ -54,6 +55,13 @@ def test_an_interrupted_run_with_workers_leaves_complete_files_and_no_worker(
     assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "interrupted"
     assert not list(tmp_path.glob(".*.tmp"))
     assert multiprocessing.active_children() == []
+
+
+def test_a_method_that_cannot_be_loaded_is_refused_before_any_work(tmp_path):
+    with pytest.raises(MethodError, match="nosuch"):
+        run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"), methods=("nosuch",),
+                      workers=2))
+    assert not (tmp_path / "run").exists()
 
 
 @pytest.mark.parametrize("workers", [0, -1, True, 1.5])
