@@ -112,6 +112,17 @@ def method_factory(name: str) -> Callable[..., Estimator]:
     return functools.partial(PluginStabilizer, name, target)
 
 
+def check_methods(names) -> None:
+    """Load every method of ``names`` once, so that one that cannot be loaded is reported
+    before any work (worker processes load them only at their first frame).
+
+    Raises:
+        MethodError: the first name that is not a method (see :func:`method_factory`).
+    """
+    for name in names:
+        method_factory(name)
+
+
 def _load(name: str) -> Any:
     """The object a non-built-in name refers to: an import path's, or an entry point's."""
     if ":" in name:

@@ -28,7 +28,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
-from sim.harness.methods import Estimator, method_factory
+from sim.harness.methods import Estimator, check_methods, method_factory
 from sim.harness.threads import check_worker_count
 from stabilizer import compensate
 from stabilizer.motion import Motion
@@ -380,8 +380,7 @@ def run(config: RunConfig) -> dict:
     check_worker_count(config.workers)
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
-    for method in methods:  # a method that cannot be loaded is reported before any work
-        method_factory(method)
+    check_methods(methods)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     scoring = Scoring(scenario, methods, Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,

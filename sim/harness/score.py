@@ -61,6 +61,7 @@ def score(config: ScoreConfig) -> dict:
     The status is as for ``sim.harness.runner.run``: "complete", "fell" (the recording ended
     with the robot's fall), "interrupted" or "error".
     """
+    from sim.harness.methods import check_methods
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict
     from sim.harness.sequence import SEQUENCE_JSON, load_sequence
@@ -72,6 +73,7 @@ def score(config: ScoreConfig) -> dict:
     file_methods = {name: FileEstimation(path, sequence) for name, path in
                     config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
+    check_methods(methods)
     clash = sorted(set(methods) & set(file_methods))
     if clash:
         raise ValueError(f"{', '.join(clash)} named both as a method and as an estimates file; "

@@ -80,6 +80,15 @@ def test_the_workers_draw_every_plot_of_the_run(folders):
     assert all((folders / "w2" / name).stat().st_size > 10_000 for name in plots)
 
 
+def test_a_method_that_cannot_be_loaded_is_refused_before_any_work(folders, tmp_path):
+    from sim.harness.methods import MethodError
+
+    with pytest.raises(MethodError, match="nosuch"):
+        score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "out"),
+                          methods=("nosuch",), workers=2))
+    assert not (tmp_path / "out").exists()
+
+
 def test_chunks_are_cut_only_where_the_reference_changes():
     references = [0] * 5 + [5] * 4 + [9] * 6
     chunks = reference_chunks(references, 3)
