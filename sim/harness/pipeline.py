@@ -89,7 +89,8 @@ class PipelinedFrames:
         # Frame index -> (reference index, the worker's result, or its methods' estimates
         # once taken).
         self._started: dict[int, tuple[int, Any]] = {}
-        self.estimations = {method: _PipelinedMethod(self, method) for method in methods}
+        self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
+        self.estimations = {method: PooledMethod(self, method) for method in methods}
 
     def __enter__(self) -> "PipelinedFrames":
         self.source.__enter__()
@@ -130,16 +131,21 @@ class PipelinedFrames:
         estimate, analysis_ms = result.pop(method)
         if not result:
             del self._started[frame.index]
-        self.estimations[method].analysis_ms.extend(analysis_ms)
+        self.analysis_ms[method].extend(analysis_ms)
         return estimate
 
 
-class _PipelinedMethod:
-    """One method's view of the pipeline, as the scoring loop wants it."""
+class PooledMethod:
+    """One method's view of a pool of worker processes, as the scoring loop wants it: the
+    pool's ``estimate(method, reference, frame)`` and ``analysis_ms[method]`` (the pools of
+    ``run --workers``, :class:`PipelinedFrames`, and of ``score --workers``)."""
 
-    def __init__(self, pipeline: PipelinedFrames, method: str):
-        self.pipeline, self.method = pipeline, method
-        self.analysis_ms: list[float] = []
+    def __init__(self, pool, method: str):
+        self.pool, self.method = pool, method
+
+    @property
+    def analysis_ms(self) -> list[float]:
+        return self.pool.analysis_ms[self.method]
 
     def estimate(self, reference, frame):
-        return self.pipeline.estimate(self.method, reference, frame)
+        return self.pool.estimate(self.method, reference, frame)

@@ -236,6 +236,7 @@ def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
     pool of ``workers`` processes (whose estimates come back without their diagnostic images
     unless ``keep_images``: a recording shows them, nothing else reads them, and pickling them
     costs more than the estimates)."""
+    from sim.harness.pipeline import PooledMethod
     from sim.harness.runner import MethodEstimation
 
     if workers == 1 or not methods:
@@ -243,7 +244,7 @@ def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
         return
     pool = _EstimationPool(sequence, methods, workers, keep_images)
     try:
-        yield {method: _PooledMethod(pool, method) for method in methods}, pool
+        yield {method: PooledMethod(pool, method) for method in methods}, pool
     finally:
         pool.close()
 
@@ -337,17 +338,3 @@ class _EstimationPool:
     def close(self) -> None:
         self.processes.terminate()
         self.processes.join()
-
-
-class _PooledMethod:
-    """One method's view of the pool, as the scoring loop wants it."""
-
-    def __init__(self, pool: _EstimationPool, method: str):
-        self.pool, self.method = pool, method
-
-    @property
-    def analysis_ms(self) -> list[float]:
-        return self.pool.analysis_ms[self.method]
-
-    def estimate(self, reference, frame):
-        return self.pool.estimate(self.method, reference, frame)
