@@ -5,7 +5,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py record  --out /tmp/t2f/seq     # 24 sequences
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
-    python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margin
+    python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
@@ -190,21 +190,22 @@ def overlap_climb_time(folders: list[Path], stride: int) -> None:
     print(f"load average {load}")
 
 
-def margins(folders: list[Path], methods: list[str], stride: int,
-            candidate_margins: list[float]) -> None:
-    """For each ``candidate_margin`` of the trust check, per method, the ok frames off by more
-    than 5 deg or 10 px and the failure rate (mean over the sequences): every method's
+def margins(folders: list[Path], methods: list[str], stride: int, values: list[float],
+            param: str = "candidate_margin") -> None:
+    """For each value of a margin of the trust check (``param``, a field of
+    :class:`~stabilizer.verification.VerificationParams`), per method, the ok frames off by
+    more than 5 deg or 10 px and the failure rate (mean over the sequences): every method's
     estimates are made once without the check, and each variant of the check is applied to the
-    same estimates (docs/method.md, section 11, "Ambiguity")."""
+    same estimates (docs/method.md, section 11, "Ambiguity" and "Ridges")."""
     from stabilizer.verification import VerificationParams, Verifier
 
     loaded = [_frames(folder) for folder in folders]
-    found = {margin: {} for margin in candidate_margins}
+    found = {margin: {} for margin in values}
     for method in methods:
         unchecked = [_estimates(frames, references, method, False, stride)[0]
                      for frames, references, _, _ in loaded]
-        for margin in candidate_margins:
-            params = VerificationParams(candidate_margin=margin)
+        for margin in values:
+            params = VerificationParams(**{param: margin})
             rows = []
             for (frames, references, truth, truth_ok), motions in zip(loaded, unchecked):
                 checked, verifier, current = [], None, None
@@ -217,7 +218,7 @@ def margins(folders: list[Path], methods: list[str], stride: int,
             found[margin][method] = (sum(row["large"] for row in rows),
                                      100 * np.mean([row["failures"] for row in rows]))
     for margin, by_method in found.items():
-        print(f"candidate_margin {margin:+.2f}: " + ", ".join(
+        print(f"{param} {margin:+.2f}: " + ", ".join(
             f"{method} {large} large, {failures:.1f}%"
             for method, (large, failures) in by_method.items()))
 
@@ -399,13 +400,16 @@ def main(argv: list[str] | None = None) -> int:
     timed = commands.add_parser("overlap-climb", help="t2fuzzy's time with the final climb")
     timed.add_argument("folders", type=Path, nargs="+")
     timed.add_argument("--stride", type=int, default=4, help="time every n-th frame")
-    swept = commands.add_parser("margins", help="the check's candidate_margin, every method")
+    swept = commands.add_parser("margins", help="a margin of the check, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
                                                         "icp", "ecc", "fourier_mellin"])
     swept.add_argument("--stride", type=int, default=2, help="score every n-th frame")
     swept.add_argument("--values", type=float, nargs="+",
                        default=[-0.1, -0.05, 0.03, 0.05, 0.08, 0.1])
+    swept.add_argument("--param", default="candidate_margin",
+                       choices=["candidate_margin", "outside_margin", "ridge_margin",
+                                "null_margin"])
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
     isolated.add_argument("folders", type=Path, nargs="+")
     drawer = commands.add_parser("figures", help="the failing frames of docs/method.md")
@@ -423,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "overlap-climb":
         overlap_climb_time(_sequences(args.folders), args.stride)
     elif args.command == "margins":
-        margins(_sequences(args.folders), args.methods, args.stride, args.values)
+        margins(_sequences(args.folders), args.methods, args.stride, args.values, args.param)
     elif args.command == "stage6":
         stage6(_sequences(args.folders))
     else:

@@ -341,7 +341,7 @@ class T2FuzzyEstimator:
                            refinements.wide_min_overlap)
                 if refinements.rotation_search and refinements.wide_search_px > 0 else None)
         self.rotation_search = (RotationSearch(self.template, self.coarse_template, refinements,
-                                               wide)
+                                               wide, reference)
                                 if refinements.rotation_search else None)
         self.search_without_estimates = (refinements.rotation_search
                                          and refinements.search_without_estimates)
@@ -439,7 +439,7 @@ class T2FuzzyEstimator:
                 return Motion.failed(NO_STRUCTURE, frame="current", **diagnostics)
             motion = self._rotation_translation(reference.fits, frame.fits, reference, frame,
                                                 image, dict(diagnostics, refine_passes=0),
-                                                valid=current > 0)
+                                                current=current)
         # Refinement: the rest of the common-disc passes, then (with the rotation search) up to
         # extra_disc_passes more while the searched and thresholded rotations disagree.
         extra = self.refinements.extra_disc_passes if self.rotation_search is not None else 0
@@ -477,12 +477,14 @@ class T2FuzzyEstimator:
                               reference: FrameAnalysis, frame: FrameAnalysis,
                               image: np.ndarray, diagnostics: dict[str, Any],
                               near: tuple[float, float] | None = None,
-                              valid: np.ndarray | None = None) -> Motion:
+                              current: np.ndarray | None = None) -> Motion:
         """Stages 4-6 from the ellipse fits of both frames; adds to ``diagnostics``.
 
         ``image``: the current frame smoothed for the correlation; ``near``: a previous
-        translation to search around (see :meth:`_translation`); ``valid``: the current
-        frame's measured pixels, for the wide search of the refinements."""
+        translation to search around (see :meth:`_translation`); ``current``: the current
+        frame itself, for the wide search and the settling of disagreements of the
+        refinements."""
+        valid = None if current is None else current > 0
         angles, sources = self._angle_estimates(ref_fits, cur_fits, reference, frame)
         diagnostics.update(object_angles=angles, angle_sources=sources, subbands=self.subbands)
         robust = self.threshold(angles)
@@ -513,8 +515,8 @@ class T2FuzzyEstimator:
             return Motion(angle, match.x, match.y, diagnostics=diagnostics)
         # Refinement: a doubtful search settled on the whole overlap, or a failure.
         diagnostics[record] = (angle, match.x, match.y)
-        resolved = (self.rotation_search.resolve_disagreement(angle, match, image, valid)
-                    if self.refinements.resolve_disagreement else None)
+        resolved = (self.rotation_search.resolve_disagreement(angle, match, image, current)
+                    if self.refinements.resolve_disagreement and current is not None else None)
         if resolved is None:
             return Motion.failed(status, **diagnostics)
         angle, match = resolved

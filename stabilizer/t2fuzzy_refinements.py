@@ -29,7 +29,9 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   the wide search's disagree, or the search's climb ended without a maximum, the estimate and
   the wide search's motion are climbed over rotation on the masked FNCC of the
   whole overlap (:class:`OverlapNear`), and the higher peak is kept if the two climbs meet or
-  it leads by ``resolve_margin`` (:meth:`RotationSearch.resolve_disagreement`).
+  it leads by ``resolve_margin``; a tie is settled by the frames' depth edges, the trust check's
+  measure, when one motion lines them up better by ``edge_tie_margin``
+  (:meth:`RotationSearch.resolve_disagreement`).
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
   (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
   maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
@@ -56,6 +58,7 @@ from stabilizer.fncc import (
     parabolic_vertex,
 )
 from stabilizer.motion import Motion, image_centre, motion_matrix
+from stabilizer.verification import VerificationParams, edge_image, structure_correlation
 
 #: Half-width (pixels) of the full-resolution search around a shift found at half resolution.
 FINE_RADIUS_PX = 4
@@ -126,8 +129,16 @@ class Refinements:
             Default True.
         resolve_margin: with ``resolve_disagreement``, when the two climbs end at different
             motions (more than one ``search_step_deg`` or ``max_shift_disagreement_px`` / 2
-            apart) the higher peak must lead by at least this much FNCC, or the frame keeps the
-            status ``"translation_disagreement"`` (or ``"rotation_unconverged"``); default 0.02.
+            apart) the higher peak must lead by at least this much FNCC, or the depth edges
+            decide (``edge_tie_margin``); default 0.02.
+        edge_tie_margin: with ``resolve_disagreement``, two climbs that end apart with FNCC
+            peaks within ``resolve_margin`` are told apart by the correlation of the frames'
+            depth edges at each motion (:func:`~stabilizer.verification.structure_correlation`,
+            the measure of the trust check, which the smooth surfaces that flatten the FNCC
+            over rotation do not dominate): the motion whose edge correlation leads by at least
+            this much is the estimate; otherwise the frame keeps the status
+            ``"translation_disagreement"`` (or ``"rotation_unconverged"``). ``math.inf``: the
+            edges never decide. Default 0.05 (docs/method.md, section 12).
         large_template_border_px: with ``rotation_search``, after the climb the rotation is
             climbed once more (at half resolution) and the shift measured again (at full
             resolution) on the largest central template the found shift allows, the reference
@@ -161,6 +172,7 @@ class Refinements:
     large_template_border_px: int = 6
     resolve_disagreement: bool = True
     resolve_margin: float = 0.02
+    edge_tie_margin: float = 0.05
     final_overlap_climb: bool = False
 
     def __post_init__(self):
@@ -173,8 +185,9 @@ class Refinements:
         if self.max_shift_disagreement_px < 0:
             raise ValueError(f"max_shift_disagreement_px must be >= 0; "
                              f"got {self.max_shift_disagreement_px}")
-        if not self.resolve_margin >= 0:
-            raise ValueError(f"resolve_margin must be >= 0; got {self.resolve_margin}")
+        if not (self.resolve_margin >= 0 and self.edge_tie_margin >= 0):
+            raise ValueError(f"resolve_margin and edge_tie_margin must be >= 0; got "
+                             f"{self.resolve_margin}, {self.edge_tie_margin}")
         if not self.max_rotation_deg > 0:
             raise ValueError(f"max_rotation_deg must be > 0; got {self.max_rotation_deg}")
         if not 0.0 < self.wide_min_overlap <= 1.0:
@@ -381,10 +394,13 @@ class RotationSearch:
             ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``
             and ``resolve_margin``.
         wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
+        reference: the reference frame itself, whose depth edges settle a disagreement that
+            the FNCC cannot (``edge_tie_margin``); None: they never do.
     """
 
     def __init__(self, template: RotatedTemplate, coarse_template: RotatedTemplate,
-                 refinements: Refinements, wide: WideSearch | None = None):
+                 refinements: Refinements, wide: WideSearch | None = None,
+                 reference: np.ndarray | None = None):
         self.template = template
         self.coarse_template = coarse_template
         self.step = float(refinements.search_step_deg)
@@ -401,6 +417,9 @@ class RotationSearch:
         self.wide_angle: float | None = None
         self.shift_tolerance = float(refinements.max_shift_disagreement_px) / 2.0
         self.resolve_margin = float(refinements.resolve_margin)
+        self.edge_tie_margin = float(refinements.edge_tie_margin)
+        self._reference = reference
+        self._reference_edges: tuple[np.ndarray, np.ndarray] | None = None  # when first needed
         self.final_overlap_climb = bool(refinements.final_overlap_climb)
 
     def __call__(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
@@ -486,7 +505,7 @@ class RotationSearch:
         return angle, match, converged and fine_converged
 
     def resolve_disagreement(self, angle: float, match: TemplateMatch, image: np.ndarray,
-                             valid: np.ndarray) -> tuple[float, TemplateMatch] | None:
+                             current: np.ndarray) -> tuple[float, TemplateMatch] | None:
         """The motion at the higher of two peaks of the masked FNCC of the whole overlap, or
         None when the two cannot be told apart; after a search whose estimate (``angle``,
         ``match``) disagrees with the wide search's shift, or whose climb found no maximum.
@@ -497,16 +516,22 @@ class RotationSearch:
         (:meth:`_climb`) on the whole overlap near its own shift (:class:`OverlapNear`) at half
         resolution; the higher peak is climbed again at full resolution (kept only if that ends
         at a local maximum within two steps). The whole overlap's peak over rotation is broad
-        (smooth surfaces dominate it), so two climbs that end apart are told apart only by a
-        lead of ``resolve_margin`` in FNCC: otherwise, or if either climb has no maximum within
-        the rotation range, the frame stays a failure.
+        (smooth surfaces dominate it), so two climbs that end apart are told apart by a lead of
+        ``resolve_margin`` in FNCC, or else by a lead of ``edge_tie_margin`` in the correlation
+        of the frames' depth edges (:meth:`_edge_tie_break`); otherwise, or if either climb has
+        no maximum within the rotation range, the frame stays a failure.
+
+        Args:
+            image: the current frame, smoothed as the template was.
+            current: the current frame itself (0 = unmeasured).
         """
         if self.wide is None or self.wide_shift is None:
             return None
+        valid = current > 0
         half_search = self.wide.near(half=True)
-        current = half_search.spectra(cv2.pyrDown(image), half_resolution_valid(valid))
-        climbs = [self._climb(half_search, current, start,
-                              half_search.match(current, start, shift))
+        spectra = half_search.spectra(cv2.pyrDown(image), half_resolution_valid(valid))
+        climbs = [self._climb(half_search, spectra, start,
+                              half_search.match(spectra, start, shift))
                   for start, shift in ((angle, (match.x, match.y)),
                                        (self.wide_angle, self.wide_shift))]
         if not all(converged and np.isfinite(top.height) for _, top, converged in climbs):
@@ -514,9 +539,13 @@ class RotationSearch:
         (angle_a, top_a, _), (angle_b, top_b, _) = climbs
         meet = (abs(angle_a - angle_b) <= self.step
                 and math.hypot(top_a.x - top_b.x, top_a.y - top_b.y) <= self.shift_tolerance)
-        if not meet and abs(top_a.height - top_b.height) < self.resolve_margin:
-            return None
-        angle, top, _ = climbs[0] if top_a.height >= top_b.height else climbs[1]
+        if meet or abs(top_a.height - top_b.height) >= self.resolve_margin:
+            angle, top, _ = climbs[0] if top_a.height >= top_b.height else climbs[1]
+        else:
+            chosen = self._edge_tie_break(climbs, current)
+            if chosen is None:
+                return None
+            angle, top, _ = chosen
         # A climb beyond two steps is not kept: it need not be walked.
         found = self._full_overlap_climb(angle, (top.x, top.y), image, valid, 2)
         if found is None:
@@ -525,6 +554,26 @@ class RotationSearch:
         if converged and abs(fine_angle - angle) < 2.0 * self.step:
             return fine_angle, fine
         return angle, start
+
+    def _edge_tie_break(self, climbs: list[tuple[float, TemplateMatch, bool]],
+                        current: np.ndarray) -> tuple[float, TemplateMatch, bool] | None:
+        """Of two climbs whose FNCC peaks tie, the one whose motion lines up the frames' depth
+        edges better by ``edge_tie_margin`` (:func:`~stabilizer.verification.edge_image` and
+        :func:`~stabilizer.verification.structure_correlation`, with the trust check's default
+        scales), or None."""
+        if self._reference is None or not math.isfinite(self.edge_tie_margin):
+            return None
+        scales = VerificationParams()
+        if self._reference_edges is None:
+            self._reference_edges = edge_image(self._reference, scales.sigma_px,
+                                               scales.clip_factor)
+        current_edges = edge_image(current, scales.sigma_px, scales.clip_factor)
+        first, second = (structure_correlation(*self._reference_edges, *current_edges,
+                                               Motion(angle, top.x, top.y))[0]
+                         for angle, top, _ in climbs)
+        if abs(first - second) < self.edge_tie_margin:
+            return None
+        return climbs[0] if first > second else climbs[1]
 
     def climb_on_overlap(self, angle: float, match: TemplateMatch, image: np.ndarray,
                          valid: np.ndarray) -> tuple[float, TemplateMatch] | None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -85,6 +86,13 @@ class VerificationParams:
         outside_margin: the same margin against an estimate that turns beyond the searched
             angles, which must explain the frames clearly better than a turn within them.
             Default 0.1.
+        ridge_margin: the best shift at the estimate's rotation within the offset limits is
+            pinned down when every shift just beyond its own offset limits (up to 2 px farther)
+            scores more than this below it (plain masked NCC of the edge images); otherwise the
+            estimate fails: the frames do not fix the motion within the limits (a ridge, such
+            as a floor's horizon under a sideways shift). A negative margin asks the next
+            shifts to score better than the best. Default 0.03 (docs/method.md, section 11,
+            "Ridges").
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
     """
@@ -102,6 +110,7 @@ class VerificationParams:
     convincing_correlation: float = 0.7
     candidate_margin: float = 0.05
     outside_margin: float = 0.1
+    ridge_margin: float = 0.03
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
 
     def __post_init__(self):
@@ -245,7 +254,8 @@ class Verifier:
        ``max_offset_deg``) has a convincing optimum (correlation at least
        ``convincing_correlation``): no search looks for rivals that far out; and no motion
        beyond the offset limits explains the frames about as well or better: not a
-       shift at the estimate's rotation (every shift is scored, :meth:`shift_rival`), nor,
+       shift at the estimate's rotation (every shift is scored, :meth:`shift_rival`; the
+       continuation of a ridge through the estimate counts), nor,
        unless the optimum is convincing (correlation at least ``convincing_correlation``) and
        the estimate turns within the grid of angles, the best motion of a search over that grid
        (:meth:`candidate`, climbed to its own optimum; :meth:`_rival_candidate`): the estimate
@@ -280,8 +290,13 @@ class Verifier:
         self._reference_shifts = self._shifts.spectra(half, self._reference_half[1].view(bool),
                                                       moving=False)
         steps = np.arange(-reach, reach + 1)
-        self._within_offset = 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij")) \
-            <= params.max_offset_px
+        distance = 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij"))
+        self._within_offset = distance <= params.max_offset_px
+        # The shifts (rows, columns) one half-resolution pixel beyond the offset limits of a
+        # given shift: where a ridge through it continues.
+        self._ring = np.nonzero(~self._within_offset
+                                & (distance <= params.max_offset_px + 2.0))
+        self._ring = (self._ring[0] - reach, self._ring[1] - reach)
         # The search's turn-backs depend on the frame size alone: made once per reference.
         centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
         self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
@@ -365,7 +380,7 @@ class Verifier:
         angles without a convincing optimum adds ``verify_beyond_search`` (True), a rival
         ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
         (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
-        estimate's score on the same scale) and the rejected
+        estimate's score on the same scale, and ``verify_ridge``) and the rejected
         estimate as ``unverified_motion``. A Motion that is already a failure is returned as it
         is."""
         if not motion.ok:
@@ -402,9 +417,10 @@ class Verifier:
             rival = self.shift_rival(current_half, motion)
             if rival is not None:
                 failed = "ambiguous"
-                diagnostics.update(verify_candidate=rival[0].as_tuple(),
-                                   verify_candidate_correlation=rival[2],
-                                   verify_shift_correlation=rival[1])
+                diagnostics.update(verify_candidate=rival.motion.as_tuple(),
+                                   verify_candidate_correlation=rival.score,
+                                   verify_shift_correlation=rival.estimate_score,
+                                   verify_ridge=rival.ridge)
         if failed is None:  # the search costs most of the check: only for what passed so far
             rival = self._rival_candidate(current_edges, current_half, motion, optimum,
                                            optimum_correlation, beyond)
@@ -422,7 +438,7 @@ class Verifier:
         return Motion(motion.angle_deg, motion.dx, motion.dy, diagnostics=diagnostics)
 
     def shift_rival(self, current_half: tuple[np.ndarray, np.ndarray],
-                    motion: Motion) -> tuple[Motion, float, float] | None:
+                    motion: Motion) -> ShiftRival | None:
         """A motion at the rotation of ``motion``, with a shift beyond the offset limits, that
         lines the depth edges up about as well as the estimate or better; None if there is none.
 
@@ -435,12 +451,11 @@ class Verifier:
         flank of the estimate's own peak) that scores more than the best shift within them less
         ``candidate_margin`` is a rival: a second object like the one the estimate lined up, or
         a ridge along which the edges fit many shifts (a floor's horizon under a sideways
-        shift); the check cannot tell which motion is right.
-
-        Returns:
-            The rival (the estimate's rotation; its shift, refined by a parabola along each
-            axis and turned by that rotation, added to the estimate's), the best correlation
-            within the offset limits and the rival's.
+        shift); the check cannot tell which motion is right. A ridge without a second peak (a
+        single straight edge across the overlap) is a rival too: when no peak is, the best
+        shift just beyond the offset limits of the best shift within them (up to 2 px farther)
+        is one if its plain NCC, not weighted, is within ``ridge_margin`` of that best shift's:
+        the frames do not pin the shift down to the limits.
         """
         half, measured = current_half
         size = half.shape[::-1]
@@ -451,17 +466,32 @@ class Verifier:
             cv2.warpAffine(half, warp, size, flags=cv2.INTER_LINEAR | inverse),
             cv2.warpAffine(measured, warp, size, flags=cv2.INTER_NEAREST | inverse).view(bool),
             moving=True)
-        scores = self._shifts.surface(self._reference_shifts, compensated, weighted=True)
+        plain, scores = self._shifts.surfaces(self._reference_shifts, compensated)
         here = float(scores[self._within_offset].max())
         peaks = cv2.dilate(scores, np.ones((3, 3), np.uint8)) == scores
         found = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, scores),
                              self._shifts.max_shift)
-        if not (math.isfinite(here) and found.peak > here - self.params.candidate_margin):
-            return None
-        shift = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.array([found.x,
-                                                                                   found.y]))
-        return (Motion(motion.angle_deg, motion.dx + float(shift[0]), motion.dy + float(shift[1])),
-                here, found.peak)
+        if math.isfinite(here) and found.peak > here - self.params.candidate_margin:
+            shift, score, ridge = (found.x, found.y), found.peak, False
+        else:  # no second peak; along a ridge there is none, but the next shifts score as high
+            within = np.where(self._within_offset, plain, -np.inf)
+            best = np.unravel_index(int(np.argmax(within)), within.shape)
+            here = float(within[best])
+            rows, cols = best[0] + self._ring[0], best[1] + self._ring[1]
+            inside = (rows >= 0) & (rows < plain.shape[0]) & (cols >= 0) & (cols < plain.shape[1])
+            rows, cols = rows[inside], cols[inside]
+            beyond = plain[rows, cols]
+            if not (math.isfinite(here) and beyond.size):
+                return None
+            index = int(np.argmax(beyond))
+            score = float(beyond[index])
+            if not score > here - self.params.ridge_margin:
+                return None
+            reach = self._shifts.max_shift
+            shift, ridge = (float(cols[index] - reach), float(rows[index] - reach)), True
+        turned = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.asarray(shift))
+        return ShiftRival(Motion(motion.angle_deg, motion.dx + float(turned[0]),
+                                 motion.dy + float(turned[1])), here, score, ridge)
 
     def _rival_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
                          current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
@@ -513,6 +543,23 @@ class Verifier:
                 > self.params.max_offset_deg
                 or math.hypot(motion.dx - other.dx, motion.dy - other.dy)
                 > self.params.max_offset_px)
+
+
+class ShiftRival(NamedTuple):
+    """A rival of :meth:`Verifier.shift_rival`.
+
+    Attributes:
+        motion: the rival: the estimate's rotation; its shift (refined by a parabola along each
+            axis for a peak), turned by that rotation, added to the estimate's.
+        estimate_score: the best score within the offset limits of the estimate.
+        score: the rival's score, on the same scale (weighted for a peak, plain for a ridge).
+        ridge: whether it continues a ridge rather than being a peak of its own.
+    """
+
+    motion: Motion
+    estimate_score: float
+    score: float
+    ridge: bool
 
 
 def _half_resolution(edges: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -73,7 +73,7 @@ def _wide_search_setup(truth):
     search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
                             Refinements(), wide)
     current = apply_motion(reference, truth)
-    return search, _smoothed(current), current > 0
+    return search, _smoothed(current), current
 
 
 @pytest.mark.parametrize("truth", [Motion(5.0, 12.0, -6.0), Motion(-8.0, 58.0, 20.0),
@@ -81,7 +81,8 @@ def _wide_search_setup(truth):
 def test_wide_search_finds_shifts_beyond_the_central_template(truth):
     """The central template reaches +-44 px; the masked search of the whole overlap finds
     the shift beyond it too (the last two), and a nearby one to start the fine search."""
-    search, image, valid = _wide_search_setup(truth)
+    search, image, current = _wide_search_setup(truth)
+    valid = current > 0
     angle, match, converged = search(np.array([truth.angle_deg]), truth.angle_deg, image,
                                       valid=valid)
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=1.0)
@@ -161,7 +162,8 @@ def test_off_is_the_paper_pipeline():
 @pytest.mark.parametrize("params", [{"search_step_deg": 0.0}, {"search_max_steps": -1},
                                     {"common_disc_passes": -1}, {"extra_disc_passes": -1},
                                     {"wide_search_px": -1}, {"wide_min_overlap": 0.0},
-                                    {"max_rotation_deg": 0.0}, {"resolve_margin": -0.1}])
+                                    {"max_rotation_deg": 0.0}, {"resolve_margin": -0.1},
+                                    {"edge_tie_margin": -0.1}])
 def test_bad_refinement_parameters_are_value_errors(params):
     with pytest.raises(ValueError, match=next(iter(params))):
         Refinements(**params)
@@ -192,7 +194,8 @@ def test_overlap_near_follows_the_peak_to_the_shift(half):
     """Searched from a shift 9 px off (beyond its +-3 px window, at either resolution), the
     masked FNCC of the whole overlap near a motion follows its peak to the true shift."""
     truth = Motion(8.0, 10.0, -5.0)
-    search, image, valid = _wide_search_setup(truth)
+    search, image, current = _wide_search_setup(truth)
+    valid = current > 0
     near = search.wide.near(half)
     current = (near.spectra(cv2.pyrDown(image), half_resolution_valid(valid)) if half
                else near.spectra(image, valid))
@@ -207,11 +210,12 @@ def test_a_disagreement_is_resolved_on_the_whole_overlap():
     """The wide search scored rotation 0 only (its shift is that of a wrong rotation), and the
     central estimate is 9 px off in y: climbed on the whole overlap, the motion is the truth."""
     truth = Motion(8.0, 10.0, -5.0)
-    search, image, valid = _wide_search_setup(truth)
+    search, image, current = _wide_search_setup(truth)
+    valid = current > 0
     search(np.array([0.0]), 0.0, image, valid=valid)
     assert search.wide_angle == 0.0
     wrong = TemplateMatch(truth.dx, truth.dy - 9.0, 0.9, False, 0.9)
-    angle, match = search.resolve_disagreement(truth.angle_deg + 0.5, wrong, image, valid)
+    angle, match = search.resolve_disagreement(truth.angle_deg + 0.5, wrong, image, current)
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
 
 
@@ -230,10 +234,34 @@ def test_two_peaks_that_correlate_alike_stay_a_disagreement():
     search(np.array([0.0]), 0.0, image, valid=valid)
     search.wide_angle, search.wide_shift = 0.0, (5.0 + 24.0, 3.0)
     estimate = TemplateMatch(5.0, 3.0, 0.9, False, 0.9)
-    assert search.resolve_disagreement(0.0, estimate, image, valid) is None
+    assert search.resolve_disagreement(0.0, estimate, image, current) is None
     # With no margin asked for, the higher of the two is taken.
     search.resolve_margin = 0.0
-    assert search.resolve_disagreement(0.0, estimate, image, valid) is not None
+    assert search.resolve_disagreement(0.0, estimate, image, current) is not None
+
+
+def test_depth_edges_settle_two_climbs_whose_correlations_tie():
+    """Of two motions (the truth and one 6 degrees and 4 px off), the one whose depth edges
+    line up is kept, in either order; motions that line them up alike stay undecided, as does
+    every tie without the reference frame or with an infinite margin."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(3))
+    truth = Motion(5.0, 8.0, -4.0)
+    current = apply_motion(reference, truth)
+    smoothed = _smoothed(reference)
+
+    def search(refinements=Refinements(), frame=reference):
+        return RotationSearch(RotatedTemplate(smoothed, 44),
+                              half_resolution_template(smoothed, 44), refinements, None, frame)
+
+    right = (truth.angle_deg, TemplateMatch(truth.dx, truth.dy, 0.9, False, 0.9), True)
+    wrong = (truth.angle_deg + 6.0, TemplateMatch(truth.dx + 4.0, truth.dy, 0.9, False, 0.9),
+             True)
+    assert search()._edge_tie_break([right, wrong], current) is right
+    assert search()._edge_tie_break([wrong, right], current) is right
+    assert search()._edge_tie_break([right, right], current) is None
+    assert search(frame=None)._edge_tie_break([right, wrong], current) is None
+    assert search(Refinements(edge_tie_margin=np.inf))._edge_tie_break([right, wrong],
+                                                                        current) is None
 
 
 def test_the_estimator_resolves_a_disagreement_only_when_asked_to():
@@ -259,7 +287,8 @@ def test_the_final_overlap_climb_takes_a_motion_to_the_whole_overlaps_peak():
     """A motion 3 degrees and a few pixels off the truth, climbed on the whole overlap, ends at
     the truth."""
     truth = Motion(8.0, 10.0, -5.0)
-    search, image, valid = _wide_search_setup(truth)
+    search, image, current = _wide_search_setup(truth)
+    valid = current > 0
     off = TemplateMatch(truth.dx + 3.0, truth.dy - 2.0, 0.9, False, 0.9)
     angle, match = search.climb_on_overlap(truth.angle_deg - 3.0, off, image, valid)
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
