@@ -391,8 +391,8 @@ class RotationSearch:
         template: the reference's FNCC template (stage 6) at full resolution.
         coarse_template: the same at half resolution (:func:`half_resolution_template`).
         refinements: ``search_step_deg``, ``search_max_steps``, ``search_candidates``,
-            ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``
-            and ``resolve_margin``.
+            ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``,
+            ``resolve_margin`` and ``edge_tie_margin``.
         wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
         reference: the reference frame itself, whose depth edges settle a disagreement that
             the FNCC cannot (``edge_tie_margin``); None: they never do.

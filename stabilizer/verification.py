@@ -292,11 +292,10 @@ class Verifier:
         steps = np.arange(-reach, reach + 1)
         distance = 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij"))
         self._within_offset = distance <= params.max_offset_px
-        # The shifts (rows, columns) one half-resolution pixel beyond the offset limits of a
-        # given shift: where a ridge through it continues.
-        self._ring = np.nonzero(~self._within_offset
-                                & (distance <= params.max_offset_px + 2.0))
-        self._ring = (self._ring[0] - reach, self._ring[1] - reach)
+        # Offsets (rows, columns) of the shifts one half-resolution pixel beyond the offset
+        # limits of a shift: where a ridge through it continues.
+        rows, cols = np.nonzero(~self._within_offset & (distance <= params.max_offset_px + 2.0))
+        self._ring = (rows - reach, cols - reach)
         # The search's turn-backs depend on the frame size alone: made once per reference.
         centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
         self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
