@@ -22,7 +22,8 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   :class:`~stabilizer.fncc.MaskedCorrelation`), over shifts up to ``wide_search_px``: the
   central template of stage 6 sees neither the structures near the border nor shifts beyond its
   margin. Its shift is where the finer search starts; a shift beyond the central template's
-  reach is climbed over rotations on the whole overlap instead.
+  reach is climbed over rotations on the whole overlap instead, at half and then at full
+  resolution (:meth:`RotationSearch.climb_on_overlap`).
 - Search without ellipse estimates (``search_without_estimates``): a frame whose ellipses give
   no rotation estimate is searched from rotation 0 rather than failed.
 - Resolving a disagreement (``resolve_disagreement``): when the central template's shift and
@@ -469,8 +470,15 @@ class RotationSearch:
                 return candidates[best], wide[best], False
             reach = self.template.margin - FINE_RADIUS_PX
             if max(abs(wide[best].x), abs(wide[best].y)) > reach:
-                # Beyond the central template's reach: climb on the whole overlap.
-                return self._climb(self.wide, spectra, candidates[best], wide[best])
+                # Beyond the central template's reach: climb on the whole overlap, at half
+                # resolution and then, like every other path, at full resolution.
+                angle, top, converged = self._climb(self.wide, spectra, candidates[best],
+                                                    wide[best])
+                if converged and np.isfinite(top.height):
+                    climbed = self.climb_on_overlap(angle, top, image, valid)
+                    if climbed is not None:
+                        angle, top = climbed
+                return angle, top, converged
             # Every candidate near the wide search's shift, and only there.
             coarse = [self.coarse_template.match(half, angle, (wide[best].x / 2.0,
                                                                 wide[best].y / 2.0))

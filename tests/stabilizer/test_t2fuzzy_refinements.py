@@ -206,6 +206,18 @@ def test_overlap_near_follows_the_peak_to_the_shift(half):
     assert near.match(current, 0.0, (truth.dx, truth.dy)).height < found.height - 0.01
 
 
+@pytest.mark.parametrize("truth", [Motion(-8.0, 58.0, 20.0), Motion(-4.3, -47.0, 8.0)])
+def test_beyond_the_central_templates_reach_the_climb_ends_at_full_resolution(truth):
+    """A shift the central template cannot reach is climbed over rotation on the whole overlap,
+    at half resolution and then at full resolution: the estimate is as fine as a full-resolution
+    match (at half resolution alone y was 0.25 px off for the second motion)."""
+    search, image, current = _wide_search_setup(truth)
+    angle, match, converged = search(np.array([0.0]), 0.0, image, valid=current > 0)
+    assert converged and max(abs(match.x), abs(match.y)) > search.template.margin - 4
+    np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.2)
+    assert abs(angle - truth.angle_deg) < 0.05
+
+
 def test_a_disagreement_is_resolved_on_the_whole_overlap():
     """The wide search scored rotation 0 only (its shift is that of a wrong rotation), and the
     central estimate is 9 px off in y: climbed on the whole overlap, the motion is the truth."""
