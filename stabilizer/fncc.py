@@ -366,12 +366,19 @@ class MaskedCorrelation:
         shares of each frame's sum of squares E (about its mean, on all its valid pixels) that
         the overlap's spreads S' hold: a shift that lines up only part of the frames then scores
         below one that lines up all of them as well."""
-        plain, weighted_scores = self.surfaces(fixed, moving)
-        return weighted_scores if weighted else plain
+        ncc, weight, usable = self._ncc(fixed, moving, weighted)
+        return np.where(usable, ncc * weight if weighted else ncc, -np.inf)
 
     def surfaces(self, fixed: MaskedSpectra,
                  moving: MaskedSpectra) -> tuple[np.ndarray, np.ndarray]:
         """The plain and the weighted :meth:`surface`, from one set of correlations."""
+        ncc, weight, usable = self._ncc(fixed, moving, True)
+        return np.where(usable, ncc, -np.inf), np.where(usable, ncc * weight, -np.inf)
+
+    def _ncc(self, fixed: MaskedSpectra, moving: MaskedSpectra,
+             weighted: bool) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """The NCC at every searched shift (clipped to [-1, 1]), its weight (None unless
+        ``weighted``) and where it is usable."""
         overlap = np.rint(self._correlation(fixed.mask, moving.mask))
         s_f = self._correlation(fixed.image, moving.mask)
         s_g = self._correlation(fixed.mask, moving.image)
@@ -381,12 +388,12 @@ class MaskedCorrelation:
             spread_f = self._correlation(fixed.square, moving.mask) - s_f * s_f * inverse_n
             spread_g = self._correlation(fixed.mask, moving.square) - s_g * s_g * inverse_n
             ncc = numerator / np.sqrt(spread_f * spread_g)
-            usable = ((overlap >= max(self.min_overlap * fixed.n_valid, 2.0))
-                      & (spread_f > FLAT_SPREAD * fixed.energy)
-                      & (spread_g > FLAT_SPREAD * moving.energy) & np.isfinite(ncc))
-            ncc = np.clip(ncc, -1.0, 1.0)
-            weighted = ncc * np.sqrt(spread_f * spread_g / (fixed.energy * moving.energy))
-        return np.where(usable, ncc, -np.inf), np.where(usable, weighted, -np.inf)
+            weight = (np.sqrt(spread_f * spread_g / (fixed.energy * moving.energy)) if weighted
+                      else None)
+        usable = ((overlap >= max(self.min_overlap * fixed.n_valid, 2.0))
+                  & (spread_f > FLAT_SPREAD * fixed.energy)
+                  & (spread_g > FLAT_SPREAD * moving.energy) & np.isfinite(ncc))
+        return np.clip(ncc, -1.0, 1.0), weight, usable
 
     def match(self, fixed: MaskedSpectra, moving: MaskedSpectra) -> TemplateMatch:
         """The shift d of the highest NCC, refined by a parabola along each axis."""
