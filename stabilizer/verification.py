@@ -90,9 +90,10 @@ class VerificationParams:
             pinned down when every shift just beyond its own offset limits (up to 2 px farther)
             scores more than this below it (plain masked NCC of the edge images); otherwise the
             estimate fails: the frames do not fix the motion within the limits (a ridge, such
-            as a floor's horizon under a sideways shift). A negative margin asks the next
-            shifts to score better than the best. Default 0.03 (docs/method.md, section 11,
-            "Ridges").
+            as a floor's horizon under a sideways shift). A shift there that cannot be scored
+            (it leaves less than ``min_overlap``, or a flat overlap) fails the estimate too.
+            A negative margin asks the next shifts to score better than the best. Default 0.03
+            (docs/method.md, section 11, "Ridges").
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
     """
@@ -453,8 +454,9 @@ class Verifier:
         shift); the check cannot tell which motion is right. A ridge without a second peak (a
         single straight edge across the overlap) is a rival too: when no peak is, the best
         shift just beyond the offset limits of the best shift within them (up to 2 px farther)
-        is one if its plain NCC, not weighted, is within ``ridge_margin`` of that best shift's:
-        the frames do not pin the shift down to the limits.
+        is one if its plain NCC, not weighted, is within ``ridge_margin`` of that best shift's,
+        or if it cannot be scored (too little overlap, a flat one): the frames do not pin the
+        shift down to the limits.
         """
         half, measured = current_half
         size = half.shape[::-1]
@@ -476,15 +478,18 @@ class Verifier:
             within = np.where(self._within_offset, plain, -np.inf)
             best = np.unravel_index(int(np.argmax(within)), within.shape)
             here = float(within[best])
+            if not math.isfinite(here):
+                return None
             rows, cols = best[0] + self._ring[0], best[1] + self._ring[1]
             inside = (rows >= 0) & (rows < plain.shape[0]) & (cols >= 0) & (cols < plain.shape[1])
-            rows, cols = rows[inside], cols[inside]
-            beyond = plain[rows, cols]
-            if not (math.isfinite(here) and beyond.size):
-                return None
-            index = int(np.argmax(beyond))
+            beyond = np.full(rows.shape, -np.inf, np.float32)
+            beyond[inside] = plain[rows[inside], cols[inside]]
+            # A shift that cannot be scored (too little overlap, a flat one, beyond the reach)
+            # is not shown to score lower: the frames do not pin the shift down on that side.
+            unscored = ~np.isfinite(beyond)
+            index = int(np.argmax(unscored if unscored.any() else beyond))
             score = float(beyond[index])
-            if not score > here - self.params.ridge_margin:
+            if not (unscored.any() or score > here - self.params.ridge_margin):
                 return None
             reach = self._shifts.max_shift
             shift, ridge = (float(cols[index] - reach), float(rows[index] - reach)), True
@@ -551,7 +556,8 @@ class ShiftRival(NamedTuple):
         motion: the rival: the estimate's rotation; its shift (refined by a parabola along each
             axis for a peak), turned by that rotation, added to the estimate's.
         estimate_score: the best score within the offset limits of the estimate.
-        score: the rival's score, on the same scale (weighted for a peak, plain for a ridge).
+        score: the rival's score, on the same scale (weighted for a peak, plain for a ridge;
+            -inf for a shift that cannot be scored).
         ridge: whether it continues a ridge rather than being a peak of its own.
     """
 
