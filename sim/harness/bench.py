@@ -38,7 +38,6 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import cv2
 import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
