@@ -32,9 +32,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=150, help="cases per method and property")
     parser.add_argument("--seed", type=int, default=77)
+    methods = available_methods()
+    parser.add_argument("--methods", nargs="+", choices=methods, default=methods,
+                        help="methods to check (default: every built-in one; each draws the "
+                             "same cases whichever others are checked)")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
-    methods = available_methods()
 
     def shape(rng, method: str, smallest: int = 0) -> tuple[int, int]:
         low = max(_estimator_class(method).min_side(), smallest)
@@ -49,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
             abs(float(wrap_angle_deg(motion.angle_deg - truth.angle_deg))) > max_deg
             or math.hypot(motion.dx - truth.dx, motion.dy - truth.dy) > max_px)
 
-    for method in methods:
+    for method in args.methods:
         rng = np.random.default_rng([args.seed, methods.index(method)])
         unrelated = identical = known = 0
         for _ in range(args.cases):

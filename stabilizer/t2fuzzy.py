@@ -83,6 +83,7 @@ from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.histogram_seeds import HistogramSeeds
 from stabilizer.it2fcm import IT2FCM, LabelCleaner
 from stabilizer.motion import Motion
+from stabilizer.peers.preparation import clipped, robust_value_range
 from stabilizer.t2_threshold import Type2FuzzyThreshold
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
@@ -331,6 +332,9 @@ class T2FuzzyEstimator:
         self.min_ncc = float(translation.min_ncc)
         self.reference = reference
         self._reference_valid = reference > 0
+        self._value_range = (robust_value_range(reference, refinements.clip_sigmas,
+                                                min_spread=refinements.clip_min_spread)
+                             if refinements.clip_sigmas > 0 else None)
         smoothed = self._smooth(reference)
         self.template = RotatedTemplate(smoothed, max_shift, valid=self._reference_valid)
         # Refinements.
@@ -558,12 +562,13 @@ class T2FuzzyEstimator:
         return self.template.match(image, angle_deg)
 
     def _smooth(self, image: np.ndarray) -> np.ndarray:
-        """Float32 copy, Gaussian-smoothed by ``ncc_sigma`` (0: none) for the correlation.
+        """Float32 copy for the correlation: clipped to the reference's robust range
+        (``Refinements.clip_sigmas``), then Gaussian-smoothed by ``ncc_sigma`` (0: none).
 
         The smoothing reaches about 2 sigma into invalid (0) areas; the template mask still
         leaves out every pixel that is invalid in the reference.
         """
-        image = image.astype(np.float32)
+        image = clipped(image, self._value_range).astype(np.float32)
         if self.ncc_sigma > 0:
             image = cv2.GaussianBlur(image, (0, 0), self.ncc_sigma)
         return image

@@ -33,6 +33,9 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   it leads by ``resolve_margin``; a tie is settled by the frames' depth edges, the trust check's
   measure, when one motion lines them up better by ``edge_tie_margin``
   (:meth:`RotationSearch.resolve_disagreement`).
+- Clipping (``clip_sigmas``): stage 6 compares the frames with their values clipped to the
+  reference's robust range, as the ECC and ICP peers do, so that phase-wrapped speckle does not
+  outweigh the rest of the frame in the correlation.
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
   (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
   maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
@@ -147,6 +150,15 @@ class Refinements:
             (:meth:`RotationSearch.refine_on_large_template`): its pixels lie farther from the
             centre of rotation than those of the ``max_shift_px`` template, and fix the
             rotation better. 0: off. Default 6.
+        clip_sigmas, clip_min_spread: stage 6 (the FNCC of the central templates, of the wide
+            search and of the climbs on the whole overlap) compares both frames with their
+            values clipped to the reference's robust range, its median +- ``clip_sigmas``
+            spreads of at least ``clip_min_spread`` gray levels
+            (:func:`~stabilizer.peers.preparation.robust_value_range`): the SR4000 shows
+            surfaces beyond its range phase-wrapped, as bright speckle, which then keeps its
+            outline but no longer outweighs the rest of the frame in the correlation. Stages 1-5
+            and the trust check see the frames as they are. 0: off. Defaults 1.5 and 20, the ECC
+            and ICP peers' clip (docs/method.md, section 12, "Clipping").
         final_overlap_climb: with the wide search, the search's estimate is climbed once more
             over rotation on the masked FNCC of the whole overlap at full resolution, near its
             own shift (:meth:`RotationSearch.climb_on_overlap`): every pixel both frames
@@ -174,6 +186,8 @@ class Refinements:
     resolve_disagreement: bool = True
     resolve_margin: float = 0.02
     edge_tie_margin: float = 0.05
+    clip_sigmas: float = 1.5
+    clip_min_spread: float = 20.0
     final_overlap_climb: bool = False
 
     def __post_init__(self):
@@ -191,6 +205,9 @@ class Refinements:
                              f"{self.resolve_margin}, {self.edge_tie_margin}")
         if not self.max_rotation_deg > 0:
             raise ValueError(f"max_rotation_deg must be > 0; got {self.max_rotation_deg}")
+        if not (self.clip_sigmas >= 0 and self.clip_min_spread > 0):
+            raise ValueError(f"clip_sigmas must be >= 0 and clip_min_spread > 0; got "
+                             f"{self.clip_sigmas}, {self.clip_min_spread}")
         if not 0.0 < self.wide_min_overlap <= 1.0:
             raise ValueError(f"wide_min_overlap must be in (0, 1]; got {self.wide_min_overlap}")
 
@@ -200,7 +217,7 @@ class Refinements:
         return cls(rotation_search=False, common_disc_passes=0, extra_disc_passes=0,
                    wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
                    max_shift_disagreement_px=0.0, large_template_border_px=0,
-                   resolve_disagreement=False)
+                   resolve_disagreement=False, clip_sigmas=0.0)
 
     @property
     def needs_coarse_template(self) -> bool:
