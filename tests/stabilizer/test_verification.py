@@ -144,6 +144,14 @@ def test_an_estimate_that_lines_a_box_up_with_its_twin_is_ambiguous(box_shift):
     assert Verifier(reference)(current, truth).ok
 
 
+def floor_scenes(seeds: tuple[int, int], shape: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """Two unrelated two-object scenes on one floor, one per seed (the unrelated pairs of
+    benchmarks/trust_properties.py)."""
+    return tuple(stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=2,
+                                                                floor=True))
+                 for seed in seeds)
+
+
 @pytest.mark.parametrize("seeds, shape, sideways", [
     ((231385369, 1315371968), (218, 151), Motion(1.0, -72.0, 1.8)),
     ((303412538, 1902831920), (238, 127), Motion(0.1, 72.0, -0.4)),
@@ -154,9 +162,7 @@ def test_a_sideways_estimate_between_unrelated_scenes_on_one_floor_is_ambiguous(
     seed 5, where `t2fuzzy` returned these motions): the floor's horizon lines up under any
     sideways shift, so the shift search at the estimate's rotation finds another shift along it
     that lines up about as much of the frames."""
-    reference, current = (stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=2,
-                                                                          floor=True))
-                          for seed in seeds)
+    reference, current = floor_scenes(seeds, shape)
     checked = Verifier(reference)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
@@ -174,9 +180,7 @@ def test_a_sideways_estimate_along_a_ridge_without_a_second_peak_is_ambiguous(se
     horizon, so the edge correlation is as high a few pixels farther along it; with no second
     peak, only the ridge test fails the estimate (it passes with the test switched off by a
     negative margin)."""
-    reference, current = (stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=2,
-                                                                          floor=True))
-                          for seed in seeds)
+    reference, current = floor_scenes(seeds, shape)
     checked = Verifier(reference)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is True
@@ -198,9 +202,7 @@ def test_a_ridge_that_runs_out_of_overlap_is_ambiguous(seeds, shape, sideways):
     and holds only the floor's crease, so the shifts farther along it cannot be scored. Not shown
     to score lower, they fail the estimate; where they can be scored (a smaller `min_overlap`),
     the ridge goes on within `ridge_margin`."""
-    reference, current = (stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=2,
-                                                                          floor=True))
-                          for seed in seeds)
+    reference, current = floor_scenes(seeds, shape)
     checked = Verifier(reference)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is True
