@@ -487,10 +487,13 @@ class Verifier:
             # A shift that cannot be scored (too little overlap, a flat one, beyond the reach)
             # is not shown to score lower: the frames do not pin the shift down on that side.
             unscored = ~np.isfinite(beyond)
-            index = int(np.argmax(unscored if unscored.any() else beyond))
+            if unscored.any():
+                index = int(np.argmax(unscored))
+            else:
+                index = int(np.argmax(beyond))
+                if not beyond[index] > here - self.params.ridge_margin:
+                    return None
             score = float(beyond[index])
-            if not (unscored.any() or score > here - self.params.ridge_margin):
-                return None
             reach = self._shifts.max_shift
             shift, ridge = (float(cols[index] - reach), float(rows[index] - reach)), True
         turned = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.asarray(shift))
