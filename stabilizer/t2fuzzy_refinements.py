@@ -163,10 +163,9 @@ class Refinements:
             over rotation on the masked FNCC of the whole overlap at full resolution, near its
             own shift (:meth:`RotationSearch.climb_on_overlap`): every pixel both frames
             measure then fixes the motion, not only the central template's.
-            Default False: on the walking frames of the tuning seeds it lowered the mean
-            rotation and x errors from 0.479 to 0.434 degrees and from 0.874 to 0.793 px and
-            the failures from 11.8% to 10.1%, but took the method from 5.9-6.1 to 8.6-9.0 ms a
-            frame (docs/method.md, section 12).
+            Default False: on walking frames it makes the method about as accurate as the ECC
+            peer (with ``large_template_border_px=0``, which it makes redundant), but costs
+            about 2 ms a frame, a third more (docs/method.md, section 12).
     """
 
     rotation_search: bool = True
