@@ -435,6 +435,7 @@ class RotationSearch:
         self.shift_tolerance = float(refinements.max_shift_disagreement_px) / 2.0
         self.resolve_margin = float(refinements.resolve_margin)
         self.edge_tie_margin = float(refinements.edge_tie_margin)
+        self._edge_scales = VerificationParams()  # the trust check's scales of the edges
         self._reference = reference
         self._reference_edges: tuple[np.ndarray, np.ndarray] | None = None  # when first needed
         self.final_overlap_climb = bool(refinements.final_overlap_climb)
@@ -587,7 +588,7 @@ class RotationSearch:
         scales), or None."""
         if self._reference is None or not math.isfinite(self.edge_tie_margin):
             return None
-        scales = VerificationParams()
+        scales = self._edge_scales
         if self._reference_edges is None:
             self._reference_edges = edge_image(self._reference, scales.sigma_px,
                                                scales.clip_factor)
