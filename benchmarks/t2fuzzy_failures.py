@@ -7,6 +7,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
+    python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
@@ -162,32 +163,58 @@ def overlap_climb_time(folders: list[Path], stride: int) -> None:
     """Process CPU ms per frame of ``t2fuzzy`` (no trust check) with its defaults, with the
     final climb on the whole overlap, and with that climb and no large template, the three
     alternating frame by frame (docs/method.md, section 12)."""
-    from stabilizer import Stabilizer
     from stabilizer.t2fuzzy_refinements import Refinements
 
-    variants = {"defaults": Refinements(),
-                "final_overlap_climb": Refinements(final_overlap_climb=True),
-                "final_overlap_climb, large_template_border_px=0":
-                    Refinements(final_overlap_climb=True, large_template_border_px=0)}
-    seconds, n_frames = dict.fromkeys(variants, 0.0), 0
+    _alternating_times(folders, stride, None, {
+        "defaults": Refinements(),
+        "final_overlap_climb": Refinements(final_overlap_climb=True),
+        "final_overlap_climb, large_template_border_px=0":
+            Refinements(final_overlap_climb=True, large_template_border_px=0)})
+
+
+def second_look_time(folders: list[Path], stride: int) -> None:
+    """Process CPU ms per frame of ``t2fuzzy`` through the trust check with its second look at
+    doubtful estimates and without it (``doubtful_offset_deg=inf``), the two alternating frame
+    by frame, and how many frames got a second look (docs/method.md, section 12)."""
+    from stabilizer.t2fuzzy_refinements import Refinements
+    from stabilizer.verification import VerificationParams
+
+    motions = _alternating_times(folders, stride, VerificationParams(), {
+        "second look": Refinements(),
+        "no second look": Refinements(doubtful_offset_deg=math.inf)})["second look"]
+    looked = sum("second_look_from" in m.diagnostics or "second_look" in m.diagnostics
+                 for m in motions)
+    print(f"second looks: {looked} of {len(motions)} frames")
+
+
+def _alternating_times(folders: list[Path], stride: int, verification,
+                       variants: dict) -> dict[str, list]:
+    """Prints the process CPU ms per frame of ``t2fuzzy`` with each of ``variants`` (name ->
+    Refinements) on every ``stride``-th frame, the variants alternating frame by frame, and the
+    load; returns each variant's motions."""
+    from stabilizer import Stabilizer
+
+    seconds = dict.fromkeys(variants, 0.0)
+    motions: dict[str, list] = {name: [] for name in variants}
     for folder in folders:
         frames, references, _, _ = _frames(folder)
         current, trackers = None, {}
         for index in range(0, len(frames), stride):
             if references[index] != current:
                 current = references[index]
-                trackers = {name: Stabilizer(frames[current], "t2fuzzy", verification=None,
-                                             refinements=refinements)
+                trackers = {name: Stabilizer(frames[current], "t2fuzzy",
+                                             verification=verification, refinements=refinements)
                             for name, refinements in variants.items()}
             for name, tracker in trackers.items():
                 start = time.process_time()
-                tracker.estimate(frames[index])
+                motions[name].append(tracker.estimate(frames[index]))
                 seconds[name] += time.process_time() - start
-            n_frames += 1
     load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
     for name, spent in seconds.items():
+        n_frames = len(motions[name])
         print(f"{name}: {1e3 * spent / n_frames:.2f} ms/frame (CPU), {n_frames} frames")
     print(f"load average {load}")
+    return motions
 
 
 def margins(folders: list[Path], methods: list[str], stride: int, values: list[float],
@@ -374,13 +401,14 @@ def _sequences(folders: list[Path]) -> list[Path]:
 
 
 def _setting(text: str) -> tuple[str, object]:
-    """``NAME=VALUE`` with a Python literal value (True, 0, 1.5)."""
+    """``NAME=VALUE`` with a Python literal value (True, 0, 1.5) or ``inf``."""
     import ast
 
     name, separator, value = text.partition("=")
     if not separator:
         raise SystemExit(f"--refinements {text!r}: accepted: NAME=VALUE")
-    return name.strip(), ast.literal_eval(value.strip())
+    value = value.strip()
+    return name.strip(), math.inf if value == "inf" else ast.literal_eval(value)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -400,6 +428,9 @@ def main(argv: list[str] | None = None) -> int:
     timed = commands.add_parser("overlap-climb", help="t2fuzzy's time with the final climb")
     timed.add_argument("folders", type=Path, nargs="+")
     timed.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    looked = commands.add_parser("second-look", help="t2fuzzy's time with its second look")
+    looked.add_argument("folders", type=Path, nargs="+")
+    looked.add_argument("--stride", type=int, default=4, help="time every n-th frame")
     swept = commands.add_parser("margins", help="a margin of the check, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
@@ -426,6 +457,8 @@ def main(argv: list[str] | None = None) -> int:
                 dict(_setting(text) for text in args.refinements))
     elif args.command == "overlap-climb":
         overlap_climb_time(_sequences(args.folders), args.stride)
+    elif args.command == "second-look":
+        second_look_time(_sequences(args.folders), args.stride)
     elif args.command == "margins":
         margins(_sequences(args.folders), args.methods, args.stride, args.values, args.param)
     elif args.command == "stage6":

@@ -4,7 +4,14 @@ Every method's estimate goes through the same steps: the frames' type and size a
 before any work (each method has a smallest image side, all share the largest,
 :data:`MAX_SIDE`); the method estimates; an ``"ok"`` estimate is then checked by the shared
 trust check (:class:`stabilizer.verification.Verifier`, docs/method.md section 11), so that
-``"ok"`` means the compensated current frame does line up with the reference.
+``"ok"`` means the compensated current frame does line up with the reference. An estimator
+that has a ``second_look(current, checked) -> Motion | None`` method is offered every estimate
+that passed the check: a Motion it returns is a new estimate, checked in its turn, which
+replaces the first if it passes and lines up the frames' depth edges at least as well
+(``verify_correlation``; ``t2fuzzy`` takes a second look at the estimates the check doubts,
+:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). A failed estimate gets no second
+look: a second chance to pass the check would let more wrong estimates through, so the frames
+that end ``"ok"`` are those whose first estimate passed.
 
 ======================  ===========================================  ========================
 method                  estimator                                    smallest image side
@@ -26,6 +33,7 @@ Why these sizes: docs/method.md, section 9, and docs/peers.md, "Image sizes".
 from __future__ import annotations
 
 import importlib
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -102,7 +110,24 @@ class Stabilizer:
         """Motion of ``current`` relative to the reference (docs/design.md convention)."""
         current = as_disparity(current, "current", reference_shape=self.reference.shape)
         motion = self._estimator.estimate(current)
-        return self._verifier(current, motion) if self._verifier is not None else motion
+        if self._verifier is None or not motion.ok:
+            return motion
+        measured = self._verifier.measure(current)
+        checked = self._verifier.check(measured, motion)
+        second_look = getattr(self._estimator, "second_look", None)
+        again = second_look(current, checked) if second_look and checked.ok else None
+        if again is None:
+            return checked
+        rechecked = self._verifier.check(measured, again)
+        if not rechecked.ok:
+            failed = rechecked.diagnostics.get("verify_failed", rechecked.status)
+        elif (rechecked.diagnostics["verify_correlation"]
+              < checked.diagnostics["verify_correlation"]):
+            failed = "edges"  # the new estimate passes, but lines the depth edges up worse
+        else:
+            return rechecked
+        return replace(checked, diagnostics=dict(checked.diagnostics, second_look=again.as_tuple(),
+                                                 second_look_failed=failed))
 
 
 def estimate(reference: np.ndarray, current: np.ndarray, method: str = "t2fuzzy",

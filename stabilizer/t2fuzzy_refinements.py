@@ -36,6 +36,11 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
 - Clipping (``clip_sigmas``): stage 6 compares the frames with their values clipped to the
   reference's robust range, as the ECC and ICP peers do, so that phase-wrapped speckle does not
   outweigh the rest of the frame in the correlation.
+- A second look (``doubtful_offset_deg``): an estimate that passed the trust check but lies
+  more than this far in rotation from the optimum of the check's own measure is climbed once
+  more over rotation on the masked FNCC of the whole overlap at full resolution
+  (:meth:`RotationSearch.climb_on_overlap`) and checked again
+  (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`).
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
   (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
   maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
@@ -166,6 +171,15 @@ class Refinements:
             Default False: on walking frames it makes the method about as accurate as the ECC
             peer (with ``large_template_border_px=0``, which it makes redundant), but costs
             about 2 ms a frame, a third more (docs/method.md, section 12).
+        doubtful_offset_deg: with the wide search and the trust check
+            (:class:`stabilizer.Stabilizer`'s ``verification``), an estimate that passed the
+            check but whose check optimum (``verify_offset_deg``) lies more than this many
+            degrees from it gets a second look: the climb of ``final_overlap_climb`` from it,
+            checked again, whose result replaces it if it passes and lines up the frames' depth
+            edges at least as well
+            (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). The climb then runs
+            only where the check doubts the estimate. ``math.inf``: off. Default 1 degree
+            (docs/method.md, section 12, "A second look").
     """
 
     rotation_search: bool = True
@@ -188,6 +202,7 @@ class Refinements:
     clip_sigmas: float = 1.5
     clip_min_spread: float = 20.0
     final_overlap_climb: bool = False
+    doubtful_offset_deg: float = 1.0
 
     def __post_init__(self):
         if not self.search_step_deg > 0:
@@ -207,6 +222,9 @@ class Refinements:
         if not (self.clip_sigmas >= 0 and self.clip_min_spread > 0):
             raise ValueError(f"clip_sigmas must be >= 0 and clip_min_spread > 0; got "
                              f"{self.clip_sigmas}, {self.clip_min_spread}")
+        if not self.doubtful_offset_deg >= 0:
+            raise ValueError(f"doubtful_offset_deg must be >= 0 (math.inf: off); got "
+                             f"{self.doubtful_offset_deg}")
         if not 0.0 < self.wide_min_overlap <= 1.0:
             raise ValueError(f"wide_min_overlap must be in (0, 1]; got {self.wide_min_overlap}")
 
@@ -216,7 +234,8 @@ class Refinements:
         return cls(rotation_search=False, common_disc_passes=0, extra_disc_passes=0,
                    wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
                    max_shift_disagreement_px=0.0, large_template_border_px=0,
-                   resolve_disagreement=False, clip_sigmas=0.0)
+                   resolve_disagreement=False, clip_sigmas=0.0,
+                   doubtful_offset_deg=math.inf)
 
     @property
     def needs_coarse_template(self) -> bool:
@@ -458,7 +477,7 @@ class RotationSearch:
         angle, match, converged = self._search(angles, first_guess, image, near, valid)
         if self.final_overlap_climb and converged and self.wide_shift is not None \
                 and np.isfinite(match.height):
-            climbed = self.climb_on_overlap(angle, match, image, valid)
+            climbed = self.climb_on_overlap(angle, (match.x, match.y), image, valid)
             if climbed is not None:
                 angle, match = climbed
         return angle, match, converged
@@ -492,7 +511,7 @@ class RotationSearch:
                 angle, top, converged = self._climb(self.wide, spectra, candidates[best],
                                                     wide[best])
                 if converged and np.isfinite(top.height):
-                    climbed = self.climb_on_overlap(angle, top, image, valid)
+                    climbed = self.climb_on_overlap(angle, (top.x, top.y), image, valid)
                     if climbed is not None:
                         angle, top = climbed
                 return angle, top, converged
@@ -600,13 +619,13 @@ class RotationSearch:
             return None
         return climbs[0] if first > second else climbs[1]
 
-    def climb_on_overlap(self, angle: float, match: TemplateMatch, image: np.ndarray,
+    def climb_on_overlap(self, angle: float, shift: tuple[float, float], image: np.ndarray,
                          valid: np.ndarray) -> tuple[float, TemplateMatch] | None:
-        """The motion (``angle``, ``match``) climbed over rotation on the masked FNCC of the
+        """The motion (``angle``, ``shift``) climbed over rotation on the masked FNCC of the
         whole overlap near its own shift (:class:`OverlapNear`), at full resolution; None when
         the overlap has no defined correlation there or the climb finds no maximum (the motion
         is then kept as it is)."""
-        found = self._full_overlap_climb(angle, (match.x, match.y), image, valid)
+        found = self._full_overlap_climb(angle, shift, image, valid)
         if found is None:
             return None
         _, (angle, top, converged) = found

@@ -369,7 +369,18 @@ class Verifier:
             return motion_from_matrix(found, shape)
         return None
 
+    def measure(self, current: np.ndarray) -> CurrentEdges:
+        """The check's measurements of ``current`` that no estimate changes, for
+        :meth:`check` (one set serves the checks of several estimates of one frame)."""
+        edges = edge_image(current, self.params.sigma_px, self.params.clip_factor)
+        null_correlation, _ = structure_correlation(*self._reference, *edges)
+        return CurrentEdges(edges, _half_resolution(*edges), null_correlation)
+
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
+        """:meth:`check` of ``motion`` on the :meth:`measure` of ``current``."""
+        return self.check(self.measure(current), motion) if motion.ok else motion
+
+    def check(self, current: CurrentEdges, motion: Motion) -> Motion:
         """``motion`` with the check's measurements added to its diagnostics when it passes:
         ``verify_correlation``, ``verify_overlap``, ``verify_null_correlation`` (the
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
@@ -386,10 +397,9 @@ class Verifier:
         if not motion.ok:
             return motion
         params = self.params
-        current_edges = edge_image(current, params.sigma_px, params.clip_factor)
+        current_edges, current_half = current.edges, current.half
+        null_correlation = current.null_correlation
         correlation, overlap = structure_correlation(*self._reference, *current_edges, motion)
-        null_correlation, _ = structure_correlation(*self._reference, *current_edges)
-        current_half = _half_resolution(*current_edges)
         optimum = self.local_optimum(current_half, motion)
         if optimum is None:  # no optimum found: the estimate is judged by itself
             optimum, optimum_correlation = motion, correlation
@@ -422,8 +432,8 @@ class Verifier:
                                    verify_shift_correlation=rival.estimate_score,
                                    verify_ridge=rival.ridge)
         if failed is None:  # the search costs most of the check: only for what passed so far
-            rival = self._rival_candidate(current_edges, current_half, motion, optimum,
-                                           optimum_correlation, beyond)
+            rival = self._rival_candidate(current, motion, optimum, optimum_correlation,
+                                           beyond)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
@@ -500,10 +510,8 @@ class Verifier:
         return ShiftRival(Motion(motion.angle_deg, motion.dx + float(turned[0]),
                                  motion.dy + float(turned[1])), here, score, ridge)
 
-    def _rival_candidate(self, current_edges: tuple[np.ndarray, np.ndarray],
-                         current_half: tuple[np.ndarray, np.ndarray], motion: Motion,
-                         optimum: Motion, optimum_correlation: float, beyond: bool
-                         ) -> tuple[Motion, float] | None:
+    def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
+                         optimum_correlation: float, beyond: bool) -> tuple[Motion, float] | None:
         """A motion at another rotation than ``motion`` that explains the frames about as well
         or better, or None.
 
@@ -527,13 +535,15 @@ class Verifier:
         params = self.params
         if not beyond and optimum_correlation >= params.convincing_correlation:
             return None
-        candidate = self.candidate(current_half)
+        if current.candidate is None:
+            current.candidate = self.candidate(current.half)
+        candidate = current.candidate
         if not self._beyond_offset(candidate, optimum):
             return None
-        refined = self.local_optimum(current_half, candidate) or candidate
+        refined = self.local_optimum(current.half, candidate) or candidate
         if not self._beyond_offset(refined, motion):
             return None
-        correlation, _ = structure_correlation(*self._reference, *current_edges, refined)
+        correlation, _ = structure_correlation(*self._reference, *current.edges, refined)
         margin = params.outside_margin if beyond else params.candidate_margin
         return (refined, correlation) if correlation > optimum_correlation - margin else None
 
@@ -550,6 +560,25 @@ class Verifier:
                 > self.params.max_offset_deg
                 or math.hypot(motion.dx - other.dx, motion.dy - other.dy)
                 > self.params.max_offset_px)
+
+
+@dataclass
+class CurrentEdges:
+    """What the check measures of a current frame whatever the estimate
+    (:meth:`Verifier.measure`).
+
+    Attributes:
+        edges: the frame's :func:`edge_image` (response, measured mask).
+        half: the same at half resolution.
+        null_correlation: the :func:`structure_correlation` of the uncompensated frame.
+        candidate: the best motion of the search over the grid of angles
+            (:meth:`Verifier.candidate`), once a check has needed it; None before.
+    """
+
+    edges: tuple[np.ndarray, np.ndarray]
+    half: tuple[np.ndarray, np.ndarray]
+    null_correlation: float
+    candidate: Motion | None = None
 
 
 class ShiftRival(NamedTuple):

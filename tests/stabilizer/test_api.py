@@ -8,6 +8,7 @@ from stabilizer.motion import Motion, apply_motion
 from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.t2fuzzy_refinements import Refinements
 from stabilizer.testing import make_depth_scene
+from stabilizer.verification import VerificationParams
 
 REFERENCE = stabilizer.depth_to_disparity(make_depth_scene(0))
 
@@ -83,3 +84,69 @@ def test_float_depth_is_accepted_and_equals_its_disparity():
     from_depth = stabilizer.estimate(depth, depth)
     from_uint8 = stabilizer.estimate(REFERENCE, REFERENCE)
     assert from_depth.as_tuple() == from_uint8.as_tuple()
+
+
+class _SecondLooking:
+    """An estimator whose estimate is ``first`` and whose second look gives ``second``."""
+
+    def __init__(self, first: Motion, second: Motion | None):
+        self.first, self.second, self.looked_at = first, second, []
+
+    def estimate(self, current):
+        return self.first
+
+    def second_look(self, current, checked):
+        self.looked_at.append(checked)
+        return self.second
+
+
+def _stabilizer_with(estimator, verification=VerificationParams()):
+    tracker = stabilizer.Stabilizer(REFERENCE, "sift", verification=verification)
+    tracker._estimator = estimator
+    return tracker
+
+
+TRUTH = Motion(6.0, 12.0, -8.0)
+CURRENT = apply_motion(REFERENCE, TRUTH)
+
+
+def test_a_second_look_that_passes_the_check_replaces_the_estimate():
+    """An estimate 1.5 degrees off passes the check; the estimator's second look, the truth,
+    passes it too and is the result."""
+    estimator = _SecondLooking(Motion(TRUTH.angle_deg + 1.5, TRUTH.dx, TRUTH.dy), TRUTH)
+    result = _stabilizer_with(estimator).estimate(CURRENT)
+    assert [checked.ok for checked in estimator.looked_at] == [True]
+    assert result.ok and result.as_tuple() == TRUTH.as_tuple()
+    assert "second_look_failed" not in result.diagnostics
+
+
+def test_a_second_look_that_fails_the_check_leaves_the_first_estimate():
+    """The truth passes the check; a second look 12 degrees off does not and is only recorded."""
+    wrong = Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy)
+    result = _stabilizer_with(_SecondLooking(TRUTH, wrong)).estimate(CURRENT)
+    assert result.ok and result.as_tuple() == TRUTH.as_tuple()
+    assert result.diagnostics["second_look"] == wrong.as_tuple()
+    assert result.diagnostics["second_look_failed"] in {"not_optimum", "correlation",
+                                                        "ambiguous"}
+
+
+def test_a_second_look_that_lines_the_edges_up_worse_leaves_the_first_estimate():
+    """A second look 1 degree off the truth passes the check, but the truth, the first
+    estimate, lines the depth edges up better and stays."""
+    near = Motion(TRUTH.angle_deg + 1.0, TRUTH.dx, TRUTH.dy)
+    assert _stabilizer_with(_SecondLooking(near, None)).estimate(CURRENT).ok
+    result = _stabilizer_with(_SecondLooking(TRUTH, near)).estimate(CURRENT)
+    assert result.as_tuple() == TRUTH.as_tuple()
+    assert result.diagnostics["second_look_failed"] == "edges"
+
+
+def test_no_second_look_after_a_failed_check_without_the_check_or_for_a_failure():
+    """An estimate the check fails gets no second chance, even one that would pass; without the
+    check nothing doubts an estimate; a method's own failure stays one."""
+    rejected = _SecondLooking(Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy), TRUTH)
+    assert _stabilizer_with(rejected).estimate(CURRENT).status == "unverified"
+    without = _SecondLooking(TRUTH, Motion(0.0, 0.0, 0.0))
+    assert _stabilizer_with(without, None).estimate(CURRENT).as_tuple() == TRUTH.as_tuple()
+    failing = _SecondLooking(Motion.failed("no_structure"), TRUTH)
+    assert _stabilizer_with(failing).estimate(CURRENT).status == "no_structure"
+    assert rejected.looked_at == without.looked_at == failing.looked_at == []

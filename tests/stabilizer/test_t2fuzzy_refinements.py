@@ -1,5 +1,7 @@
 """The refinements of ``t2fuzzy`` over the paper's pipeline, one by one."""
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -7,7 +9,7 @@ import pytest
 import stabilizer
 from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.motion import Motion, apply_motion
-from stabilizer.t2fuzzy import TRANSLATION_DISAGREEMENT
+from stabilizer.t2fuzzy import TRANSLATION_DISAGREEMENT, T2FuzzyEstimator
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
     RotationSearch,
@@ -303,7 +305,7 @@ def test_the_final_overlap_climb_takes_a_motion_to_the_whole_overlaps_peak():
     truth = Motion(8.0, 10.0, -5.0)
     search, image, current = _wide_search_setup(truth)
     valid = current > 0
-    off = TemplateMatch(truth.dx + 3.0, truth.dy - 2.0, 0.9, False, 0.9)
+    off = (truth.dx + 3.0, truth.dy - 2.0)
     angle, match = search.climb_on_overlap(truth.angle_deg - 3.0, off, image, valid)
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
 
@@ -361,3 +363,41 @@ def test_clipping_keeps_speckle_from_outweighing_the_scene():
                                  np.hypot(motion.dx - truth.dx, motion.dy - truth.dy)))
     clipped, raw = (np.mean(errors[clip], axis=0) for clip in (True, False))
     assert clipped[1] < 0.5 * raw[1] and clipped[0] < raw[0]
+
+
+def _doubted(motion: Motion, offset_deg: float) -> Motion:
+    """``motion`` as the trust check passes it with its optimum ``offset_deg`` away."""
+    return Motion(*motion.as_tuple(), diagnostics={"verify_offset_deg": offset_deg,
+                                                   "ncc_peak": 0.9})
+
+
+def test_a_second_look_climbs_a_doubted_estimate_to_the_whole_overlaps_peak():
+    """An estimate 3 degrees and a few pixels off the truth that passed the check, whose
+    optimum lies 3 degrees away, is climbed on the whole overlap to the truth; the first
+    estimate is recorded."""
+    reference = _scene()
+    truth = Motion(8.0, 10.0, -5.0)
+    current = apply_motion(reference, truth)
+    first = Motion(truth.angle_deg - 3.0, truth.dx + 3.0, truth.dy - 2.0)
+    again = T2FuzzyEstimator(reference).second_look(current, _doubted(first, 3.0))
+    assert again.ok
+    np.testing.assert_allclose(again.as_tuple(), truth.as_tuple(), atol=0.3)
+    assert again.diagnostics["second_look_from"] == first.as_tuple()
+    assert not any(key.startswith("verify_") for key in again.diagnostics)
+
+
+def test_no_second_look_unless_the_check_passed_and_doubts_the_estimate():
+    """Within ``doubtful_offset_deg`` of the check's optimum, after a failed check, with the
+    setting off, or in the paper's pipeline, there is no second look."""
+    reference = _scene()
+    truth = Motion(8.0, 10.0, -5.0)
+    current = apply_motion(reference, truth)
+    first = Motion(truth.angle_deg - 3.0, truth.dx, truth.dy)
+    estimator = T2FuzzyEstimator(reference)
+    assert estimator.second_look(current, _doubted(first, 0.9)) is None
+    failed = Motion.failed("unverified", verify_failed="not_optimum", verify_offset_deg=3.0,
+                           unverified_motion=first.as_tuple())
+    assert estimator.second_look(current, failed) is None
+    for refinements in (Refinements(doubtful_offset_deg=math.inf), Refinements.off()):
+        assert T2FuzzyEstimator(reference, refinements=refinements).second_look(
+            current, _doubted(first, 3.0)) is None

@@ -290,6 +290,25 @@ def test_a_search_that_agrees_with_the_optimum_is_not_climbed_again():
     assert checked.ok and starts == [TRUTH]
 
 
+def test_checks_of_one_measured_frame_share_its_grid_search():
+    """Estimates of one frame checked on one measurement: each as checked alone, and the grid
+    search, which no estimate changes, runs once though two estimates pass through it (with
+    no optimum convincing, every estimate that passes has been compared with the search's)."""
+    params = VerificationParams(convincing_correlation=1.0)
+    verifier = Verifier(REFERENCE, params)
+    searches = []
+    search = verifier.candidate
+    verifier.candidate = lambda half: searches.append(1) or search(half)
+    measured = verifier.measure(CURRENT)
+    near = Motion(TRUTH.angle_deg + 0.5, TRUTH.dx + 1.0, TRUTH.dy)
+    wrong = Motion(TRUTH.angle_deg + 8.0, TRUTH.dx, TRUTH.dy)
+    checked = [verifier.check(measured, motion) for motion in (TRUTH, near, wrong)]
+    assert checked == [Verifier(REFERENCE, params)(CURRENT, motion)
+                       for motion in (TRUTH, near, wrong)]
+    assert [motion.ok for motion in checked] == [True, True, False]
+    assert len(searches) == 1 and measured.candidate is not None
+
+
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
     """The fast path (uint8 filtered straight to float32, the median by partition) gives the
     documented edge image: cv2.GaussianBlur of the float frame and of its valid mask, and
