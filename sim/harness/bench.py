@@ -442,12 +442,15 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     pipeline_frames = 45 if quick else None  # None: the scenario's whole duration
     pipeline_rtf = {}
     for label, methods, record, workers in (
+            ("every method, recording on", None, True, None),
             ("every method, recording on", None, True, 1),
-            ("every method, recording on, `--workers 2`", None, True, 2),
-            ("t2fuzzy alone, no recording", ("t2fuzzy",), False, 1)):
+            ("t2fuzzy alone, no recording", ("t2fuzzy",), False, None)):
         with tempfile.TemporaryDirectory() as scratch:
             metrics = run(RunConfig(DEFAULT_SCENARIO, scratch, methods=methods, record=record,
                                     max_frames=pipeline_frames, workers=workers))
+        used = metrics["run"]["workers"]
+        label += (f", default workers (`--workers {used}` here)" if workers is None
+                  else f", `--workers {workers}`")
         pipeline_rtf[label] = metrics["run"]["realtime_factor"]
         print(f"egostab run {DEFAULT_SCENARIO}, {metrics['run']['frames_done']} frames, {label}: "
               f"{pipeline_rtf[label]:.2f}x real time")

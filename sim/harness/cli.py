@@ -227,9 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "built-in ones (default: the scenario's)")
     _add_simulation_arguments(run, "run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
-    run.add_argument("--workers", type=_worker_count, default=1,
+    run.add_argument("--workers", type=_worker_count, default=None,
                      help="processes running the methods beside the simulation, one thread "
-                          "each (default 1: the methods run in this process)")
+                          "each; 1: the methods run in this process (default: one per method "
+                          "and core when more than one method runs, else 1)")
     run.set_defaults(handler=_cmd_run)
 
     recorder = commands.add_parser(
@@ -253,8 +254,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "[, status]; named NAME or the file's stem; repeatable")
     scorer.add_argument("--out", type=Path, default=None,
                         help="run folder (default: results/<sequence folder name>)")
-    scorer.add_argument("--workers", type=_worker_count, default=1,
-                        help="processes running the methods, one thread each (default 1)")
+    scorer.add_argument("--workers", type=_worker_count, default=None,
+                        help="processes running the methods, one thread each; 1: this "
+                             "process (default: one per core)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     scorer.add_argument("--quiet", action="store_true", help="no progress bar")
     scorer.set_defaults(handler=_cmd_score)

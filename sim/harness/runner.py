@@ -29,7 +29,7 @@ import numpy as np
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
 from sim.harness.methods import Estimator, check_methods, method_factory
-from sim.harness.threads import check_worker_count
+from sim.harness.threads import worker_count
 from stabilizer import compensate
 from stabilizer.motion import Motion
 
@@ -61,7 +61,10 @@ class RunConfig:
             (for example ``{"sensor.noise_scale": 2.0}``).
         progress: show a progress bar.
         workers: processes that run the methods, each frame's estimates started as soon as
-            it is rendered (``sim.harness.pipeline``); 1 = this process.
+            it is rendered (``sim.harness.pipeline``); 1 = this process; None = one per method
+            and core when more than one method runs, else 1 (with one method, the simulation,
+            rendering and scoring in the main process are as much work as the estimates, and
+            workers made such runs slower: docs/design.md, "Threads and processes").
     """
 
     scenario: str
@@ -72,7 +75,7 @@ class RunConfig:
     seed: int | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     progress: bool = False
-    workers: int = 1
+    workers: int | None = 1
 
 
 def scenario_name(scenario: str | os.PathLike) -> str:
@@ -377,23 +380,23 @@ def run(config: RunConfig) -> dict:
     says "incomplete" (written at the start and at every checkpoint); it is written last, so
     a second interrupt during the final write leaves the folder saying so.
     """
-    check_worker_count(config.workers)
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
     check_methods(methods)
+    workers = worker_count(config.workers, len(methods) if len(methods) > 1 else 1)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     scoring = Scoring(scenario, methods, Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,
-                      meta={"max_frames": config.max_frames, "workers": config.workers},
+                      meta={"max_frames": config.max_frames, "workers": workers},
                       world_model=source.robot.model)
-    if config.workers == 1:
+    if workers == 1:
         estimations = {method: MethodEstimation(method) for method in methods}
         return score_frames(PrefetchedFrames(source), scoring, estimations, config.progress)
     from sim.harness.pipeline import PipelinedFrames
     from sim.harness.threads import single_thread_pool
 
-    with single_thread_pool(config.workers) as pool:
-        frames = PipelinedFrames(PrefetchedFrames(source), methods, pool, config.workers,
+    with single_thread_pool(workers) as pool:
+        frames = PipelinedFrames(PrefetchedFrames(source), methods, pool, workers,
                                  scenario.evaluation.reference,
                                  keep_images=scoring.recording_path is not None)
         scoring.plot_pool = pool

@@ -42,7 +42,8 @@ class ScoreConfig:
             (then only those are scored).
         estimates: method name -> CSV file of estimates made by another program.
         record: write ``recording.rrd`` if the scenario's ``[recording] enabled`` allows it.
-        workers: processes that run the methods (1 = this process).
+        workers: processes that run the methods (1 = this process; None = one per core,
+            or 1 when no method runs).
         progress: show a progress bar.
     """
 
@@ -51,7 +52,7 @@ class ScoreConfig:
     methods: tuple[str, ...] | None = None
     estimates: Mapping[str, str] = field(default_factory=dict)
     record: bool = True
-    workers: int = 1
+    workers: int | None = 1
     progress: bool = False
 
 
@@ -65,15 +66,15 @@ def score(config: ScoreConfig) -> dict:
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict
     from sim.harness.sequence import SEQUENCE_JSON, load_sequence
-    from sim.harness.threads import check_worker_count
+    from sim.harness.threads import worker_count
 
-    check_worker_count(config.workers)
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
     file_methods = {name: FileEstimation(path, sequence) for name, path in
                     config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
     check_methods(methods)
+    workers = worker_count(config.workers, (os.cpu_count() or 1) if methods else 1)
     clash = sorted(set(methods) & set(file_methods))
     if clash:
         raise ValueError(f"{', '.join(clash)} named both as a method and as an estimates file; "
@@ -84,8 +85,8 @@ def score(config: ScoreConfig) -> dict:
                                          "message": sequence.header.get("message", "")},
                             "estimates": {name: str(path)
                                           for name, path in config.estimates.items()},
-                            "workers": config.workers})
-    with _method_estimations(sequence, methods, config.workers,
+                            "workers": workers})
+    with _method_estimations(sequence, methods, workers,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
         scoring.plot_pool = pool and pool.processes
         return score_frames(SequenceFrames(sequence, decoded=pool and pool.frame), scoring,

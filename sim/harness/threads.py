@@ -58,6 +58,16 @@ def check_worker_count(workers) -> None:
         raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
 
 
+def worker_count(workers: int | None, wanted: int) -> int:
+    """``workers`` when given (checked: an integer >= 1); else ``wanted`` processes, at most
+    one per core this process may run on, at least 1."""
+    if workers is not None:
+        check_worker_count(workers)
+        return workers
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(wanted, cores or 1))
+
+
 def single_thread_pool(processes: int):
     """A pool of ``processes`` spawn processes, each on one OpenCV and one BLAS/OpenMP thread
     and deaf to Ctrl-C (it reaches the whole process group: the parent ends the work and

@@ -64,6 +64,23 @@ def test_a_method_that_cannot_be_loaded_is_refused_before_any_work(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+def test_by_default_a_run_of_one_method_estimates_in_its_own_process(tmp_path):
+    metrics = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"),
+                            methods=("t2fuzzy",), max_frames=2, record=False, workers=None))
+    assert metrics["run"]["workers"] == 1
+
+
+@pytest.mark.parametrize("cores", [1, 3])
+def test_by_default_a_run_of_several_methods_uses_a_worker_per_method_and_core(
+        tmp_path, monkeypatch, cores):
+    import os
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
+    metrics = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"),
+                            methods=METHODS, max_frames=2, record=False, workers=None))
+    assert metrics["run"]["workers"] == min(cores, len(METHODS))
+
+
 @pytest.mark.parametrize("workers", [0, -1, True, 1.5])
 def test_a_bad_worker_count_is_refused_before_any_work(tmp_path, workers):
     with pytest.raises(ValueError, match="workers must be an integer >= 1"):

@@ -124,7 +124,9 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     estimates = _estimates_from_truth(folders / "sequence", tmp_path / "mine.csv", skip={7})
     out = tmp_path / "scored"
     metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
-                                estimates={"offset": str(estimates)}, record=False))
+                                estimates={"offset": str(estimates)}, record=False,
+                                workers=None))
+    assert metrics["run"]["workers"] == 1  # by default, no worker when no method runs
     rows = _rows(out)
     assert {row["method"] for row in rows} == {"offset"} and len(rows) == N_FRAMES
     by_frame = {int(row["frame_index"]): row for row in rows}

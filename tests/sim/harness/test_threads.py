@@ -4,7 +4,9 @@ import os
 import subprocess
 import sys
 
-from sim.harness.threads import THREAD_VARIABLES
+import pytest
+
+from sim.harness.threads import THREAD_VARIABLES, worker_count
 
 PROBE = ("import cv2, numpy, os, threadpoolctl; "
          "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info()]; "
@@ -43,3 +45,17 @@ def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ig
                   "with single_thread_pool(1) as pool:\n"
                   f"    print(*pool.apply(eval, ({probe!r},)))")
     assert out == ["1", "1", "1", "True"]
+
+
+def test_a_worker_count_given_is_kept_and_checked():
+    assert worker_count(3, wanted=1) == 3
+    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+        worker_count(0, wanted=2)
+
+
+@pytest.mark.parametrize("cores, wanted, expected", [(2, 6, 2), (8, 6, 6), (2, 1, 1), (1, 6, 1),
+                                                     (4, 0, 1)])
+def test_the_default_worker_count_is_what_is_wanted_up_to_one_per_usable_core(
+        monkeypatch, cores, wanted, expected):
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
+    assert worker_count(None, wanted) == expected
