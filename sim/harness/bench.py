@@ -31,6 +31,7 @@ limit_threads()  # before numpy and OpenCV load: the figures are for one core
 
 import argparse
 import dataclasses
+import functools
 import math
 import os
 import tempfile
@@ -78,17 +79,21 @@ def _scenes(n_frames: int, n_scenes: int, seed: int) -> list[tuple[np.ndarray, l
 
 
 def time_method(method: str, scenes: list[tuple[np.ndarray, list]],
-                clock=time.perf_counter) -> float:
+                clock=time.perf_counter, checked: bool = True) -> float:
     """Median milliseconds of ``estimate(frame)`` over frames, the reference analysed once per
     scene (``Stabilizer(reference, method)`` for a built-in; sim.harness.methods). ``clock``:
-    wall-clock time by default; ``time.process_time`` counts only this process's CPU time."""
-    return float(np.median(frame_ms(method, scenes, clock)))
+    wall-clock time by default; ``time.process_time`` counts only this process's CPU time.
+    ``checked=False`` times a built-in method without the trust check every estimate of a run
+    goes through (``Stabilizer(..., verification=None)``): the method's own cost."""
+    return float(np.median(frame_ms(method, scenes, clock, checked)))
 
 
 def frame_ms(method: str, scenes: list[tuple[np.ndarray, list]],
-             clock=time.perf_counter) -> list[float]:
+             clock=time.perf_counter, checked: bool = True) -> list[float]:
     """Milliseconds of each ``estimate(frame)`` of :func:`time_method`, in frame order."""
     factory = method_factory(method)
+    if not checked:
+        factory = functools.partial(factory, verification=None)
     times = []
     for reference, frames in scenes:
         tracker = factory(reference)
@@ -123,11 +128,12 @@ def simulated_scenes(scenario: str = DEFAULT_SCENARIO, n_frames: int = 150,
 def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
                          seed: int = 0, n_scenes: int = 10,
                          scenes: list[tuple[np.ndarray, list]] | None = None,
-                         label: str | None = None) -> dict[str, float]:
+                         label: str | None = None, checked: bool = True) -> dict[str, float]:
     """Median ms per frame of each method (NaN for a method whose module is not available).
 
     Synthetic scenes by default; pass ``scenes`` (e.g. :func:`simulated_scenes`) to time other
-    frames. Prints one line per method with its time and its ratio to t2fuzzy.
+    frames. Prints one line per method with its time and its ratio to t2fuzzy. ``checked``:
+    see :func:`time_method`.
     """
     methods = list(stabilizer.available_methods() if methods is None else methods)
     if scenes is None:
@@ -137,13 +143,13 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
     results: dict[str, float] = {}
     for method in methods:
         try:
-            results[method] = time_method(method, scenes)
+            results[method] = time_method(method, scenes, checked=checked)
         except ImportError as error:  # a method whose module is not written yet
             results[method] = float("nan")
             print(f"{method:>16}: not available ({error})")
     baseline = results.get(BASELINE, float("nan"))
     print(f"ms per frame at {SHAPE[1]}x{SHAPE[0]}, median of {n_timed} frames "
-          f"({label or 'given scenes'}), one thread:")
+          f"({label or 'given scenes'}), one thread, trust check {'on' if checked else 'off'}:")
     for method, ms in results.items():
         if np.isfinite(ms):
             print(f"{method:>16}: {ms:8.3f} ms   ({ms / baseline:6.2f} x {BASELINE})")
@@ -366,9 +372,9 @@ def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
 
 
 def rescoring(n_frames: int | None = None) -> dict[str, float]:
-    """Re-scoring a recorded sequence of the default scenario: its speed and its parallelism.
+    """Recording the default scenario, and re-scoring the sequence: speed and parallelism.
 
-    Records ``n_frames`` (None: the whole scenario) once, then times ``egostab score`` of
+    Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``), then times ``egostab score`` of
     ``t2fuzzy`` alone in this process, twice (as a multiple of real time: the sequence's
     simulated seconds per wall-clock second; the figure is the faster run, the first also pays
     the process's first imports of the report and plotting code, about 1 s), and of every method
@@ -380,8 +386,10 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
 
     with tempfile.TemporaryDirectory() as scratch:
         sequence = Path(scratch) / "sequence"
+        started = time.perf_counter()
         sim_time_s = record(RecordConfig(DEFAULT_SCENARIO, str(sequence),
                                          max_frames=n_frames))["sim_time_s"]
+        record_rtf = sim_time_s / (time.perf_counter() - started)
 
         def seconds(name: str, clock=time.perf_counter, **options) -> float:
             started = clock()
@@ -396,12 +404,14 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
         runs = [(seconds(f"workers1_{run}", workers=1), seconds(f"workers2_{run}", workers=2))
                 for run in range(2)]
         one, two = (min(times) for times in zip(*runs))
+    print(f"egostab record {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): {record_rtf:.2f}x real time")
     print(f"re-scoring t2fuzzy on a recorded {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): "
           f"{t2fuzzy_rtf:.1f}x real time, one core (runs of {first:.2f} s and {again:.2f} s); "
           f"{cpu_rtf:.1f}x in process CPU time")
     print(f"score, every method: --workers 1 {one:.1f} s, --workers 2 {two:.1f} s "
           f"({one / two:.2f}x)")
-    return {"rescore_t2fuzzy_realtime_factor": t2fuzzy_rtf,
+    return {"record_realtime_factor": record_rtf,
+            "rescore_t2fuzzy_realtime_factor": t2fuzzy_rtf,
             "rescore_t2fuzzy_cpu_realtime_factor": cpu_rtf, "score_workers1_s": one,
             "score_workers2_s": two}
 
@@ -432,10 +442,12 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
 
     n_frames = 60 if quick else 200
     load_before = _load()
-    synthetic = stabilizer_benchmark(n_frames=n_frames)
-    walk = stabilizer_benchmark(scenes=simulated_scenes(DEFAULT_SCENARIO, n_frames // 2 if quick
-                                                        else 150),
-                                label=f"a simulated walk, scenario {DEFAULT_SCENARIO}")
+    synthetic, synthetic_unchecked = (stabilizer_benchmark(n_frames=n_frames, checked=checked)
+                                      for checked in (True, False))
+    walk_scenes = simulated_scenes(DEFAULT_SCENARIO, n_frames // 2 if quick else 150)
+    walk, walk_unchecked = (stabilizer_benchmark(
+        scenes=walk_scenes, label=f"a simulated walk, scenario {DEFAULT_SCENARIO}",
+        checked=checked) for checked in (True, False))
     physics_rtf = walking_realtime_factor(5.0 if quick else 20.0)
     print(f"walking physics + control, no rendering: {physics_rtf:.1f}x real time")
     render_tof_fps = render_fps(100 if quick else 300)
@@ -460,6 +472,8 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     figures = {"machine": _machine(), "date": time.strftime("%Y-%m-%d"),
                "load": f"before: {load_before}; after: {_load()}",
                "stabilizer_ms_synthetic": synthetic, "stabilizer_ms_simulated": walk,
+               "stabilizer_ms_synthetic_unchecked": synthetic_unchecked,
+               "stabilizer_ms_simulated_unchecked": walk_unchecked,
                "physics_realtime_factor": physics_rtf, "render_tof_fps": render_tof_fps,
                "pipeline_realtime_factor": pipeline_rtf, **sequences, "t2fuzzy_corpus": corpus,
                "quick": quick}
@@ -473,19 +487,26 @@ def bench_markdown(figures: dict) -> str:
     lines = [f"# Benchmarks ({figures['date']})", "",
              f"Machine: {figures['machine']}; {figures['load']}.", "",
              "Measured by `egostab bench" + (" --quick" if figures["quick"] else "")
-             + " --out results/bench.md`; stabilizers on one thread.", "",
-             "| Method | ms/frame, synthetic scenes | x t2fuzzy | ms/frame, simulated walk | "
-             "x t2fuzzy |", "|---|---|---|---|---|"]
+             + " --out results/bench.md`; stabilizers on one thread; median ms per frame, "
+             "with the trust check every estimate of a run goes through (without it: the "
+             "method's own cost).", "",
+             "| Method | synthetic scenes | without the check | x t2fuzzy | simulated walk | "
+             "without the check | x t2fuzzy |", "|---|---|---|---|---|---|---|"]
     synthetic, walk = figures["stabilizer_ms_synthetic"], figures["stabilizer_ms_simulated"]
+    synthetic_own = figures["stabilizer_ms_synthetic_unchecked"]
+    walk_own = figures["stabilizer_ms_simulated_unchecked"]
     for method, ms in synthetic.items():
-        lines.append(f"| {method} | {ms:.2f} | {ms / synthetic[BASELINE]:.2f} | "
-                     f"{walk[method]:.2f} | {walk[method] / walk[BASELINE]:.2f} |")
+        lines.append(f"| {method} | {ms:.2f} | {synthetic_own[method]:.2f} | "
+                     f"{ms / synthetic[BASELINE]:.2f} | {walk[method]:.2f} | "
+                     f"{walk_own[method]:.2f} | {walk[method] / walk[BASELINE]:.2f} |")
     lines += ["", "| Figure | Value |", "|---|---|",
               f"| walking physics + control, no rendering | "
               f"{figures['physics_realtime_factor']:.1f}x real time |",
               f"| SR4000 render + ToF, motion blur off | {figures['render_tof_fps']:.0f} frames/s |",
               *(f"| `egostab run` of the default scenario, {label} | {rtf:.2f}x real time |"
                 for label, rtf in figures["pipeline_realtime_factor"].items()),
+              f"| `egostab record` of the default scenario | "
+              f"{figures['record_realtime_factor']:.2f}x real time |",
               "| re-scoring t2fuzzy alone on the recorded default scenario, one core, faster of "
               f"two runs | "
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
