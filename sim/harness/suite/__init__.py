@@ -14,8 +14,10 @@ Output folder of a suite (``run_suite(spec, out_dir)``)::
     <out_dir>/runs/<template>__<gait>__scene<scene seed>__seed<seed>/   one run's files
     <out_dir>/suite.md, suite.csv, suite.json                           the figures
 
-A run whose metrics.json says ``"status": "complete"`` (or ``"fell"``) is skipped, so an
-interrupted suite is resumed by running it again. docs/suites.md explains the figures.
+A run whose metrics.json says ``"status": "complete"`` (or ``"fell"``) and that scored every
+method of the suite is skipped, so an interrupted suite is resumed by running it again, and a
+method added to the suite file is scored on the recorded sequences by running it again.
+docs/suites.md explains the figures.
 """
 
 from sim.harness.suite.command import add_suite_parser, run_suite_command

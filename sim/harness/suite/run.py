@@ -5,9 +5,11 @@ docs/sequence-format.md), then every method of the suite is scored on it
 (``<out_dir>/runs/<sequence>/``: the run folder of ``egostab score``, with the figures
 ``egostab run`` would give); anyone can score more methods on the same sequences later with
 ``egostab score``. The jobs go to the sweep's executors (a local ``spawn`` process pool, or
-Ray), and a job whose metrics.json says "complete" or "fell" is skipped, by the sweep's rule,
-so an interrupted suite is resumed by running it again (a sequence already recorded to its end
-is not recorded again).
+Ray), and a job whose metrics.json says "complete" or "fell" and that scored every method of
+the suite is skipped, by the sweep's rule, so an interrupted suite is resumed by running it
+again (a sequence already recorded to its end is not recorded again), and a method added to
+the suite file is scored by running it again: the recorded sequences are scored anew with
+every method of the file (the same figures for the methods scored before).
 """
 
 from __future__ import annotations

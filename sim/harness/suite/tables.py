@@ -115,7 +115,7 @@ def suite_figures(rows: Sequence[dict], methods: Sequence[str]) -> dict:
 
 
 def _value(figure: str, value: float) -> str:
-    return (f"{format_number(100 * value, 1)}%" if figure == FAILURE_RATE
+    return (f"{format_number(100 * value, 1)}%" if figure == FAILURE_RATE and math.isfinite(value)
             else format_number(value, 3))
 
 

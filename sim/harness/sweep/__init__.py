@@ -14,8 +14,9 @@ Output folder of a sweep (``run_sweep(spec, out_dir)``)::
     <out_dir>/sweep.md, sweep.csv                          one row per run and method
     <out_dir>/error_vs_noise__<scenario>.png               |error| and failures vs noise level
 
-A run whose metrics.json says ``"status": "complete"`` (or ``"fell"``) is skipped, so an
-interrupted sweep is resumed by running it again.
+A run whose metrics.json says ``"status": "complete"`` (or ``"fell"``) and that scored every
+method of the sweep is skipped, so an interrupted sweep is resumed by running it again, and a
+method added to the sweep file is scored by running it again.
 """
 
 from sim.harness.sweep.execute import BACKENDS, run_sweep

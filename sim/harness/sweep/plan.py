@@ -79,8 +79,11 @@ def default_sweep_dir(spec: SweepSpec, results: str | os.PathLike = "results") -
     return Path(results) / "sweeps" / spec.name
 
 
-def completed_metrics(run_dir: str | os.PathLike) -> dict | None:
-    """The metrics of a finished run in ``run_dir``, or None if it must (re)run."""
+def completed_metrics(run_dir: str | os.PathLike,
+                      methods: Sequence[str] | None = None) -> dict | None:
+    """The metrics of a finished run in ``run_dir`` that scored every method of ``methods``
+    (None: whichever it scored), or None if it must (re)run: a method added to a sweep or
+    suite file after its runs finished is scored when it is run again."""
     path = Path(run_dir) / METRICS_JSON
     if not path.is_file():
         return None
@@ -88,14 +91,17 @@ def completed_metrics(run_dir: str | os.PathLike) -> dict | None:
         document = read_metrics(path)
     except ValueError:  # unreadable or foreign: run it again
         return None
-    return document if document.get("status") in DONE_STATUSES else None
+    if document.get("status") not in DONE_STATUSES:
+        return None
+    scored = set((document.get("summary") or {}).get("methods") or ())
+    return document if methods is None or scored.issuperset(methods) else None
 
 
 def split_done(plan: Sequence[SweepRun]) -> tuple[list[RunOutcome], list[SweepRun]]:
     """The runs of ``plan`` already done (as skipped outcomes) and those still to run."""
     done, pending = [], []
     for sweep_run in plan:
-        metrics = completed_metrics(sweep_run.config.out_dir)
+        metrics = completed_metrics(sweep_run.config.out_dir, sweep_run.config.methods)
         if metrics is None:
             pending.append(sweep_run)
         else:

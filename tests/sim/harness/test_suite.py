@@ -239,6 +239,13 @@ def test_a_method_without_successful_estimates_counts_as_failing_and_leaves_erro
     assert "1 failed" in result.markdown and "2 scored frames and are counted" in result.markdown
 
 
+def test_a_method_with_no_figure_reads_n_a_in_the_tables(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5]}])
+    outcomes = outcomes_of(spec, tmp_path, ["RuntimeError: simulated crash"])
+    markdown = write_suite_outputs(tmp_path, spec, outcomes).markdown
+    assert "| t2fuzzy | n/a no interval (n=0) |" in markdown and "n/a%" not in markdown
+
+
 def test_paired_differences_say_which_method_is_lower_and_whether_the_data_say_so(tmp_path):
     spec = twelve_sequence_spec()
     errors = [{"t2fuzzy": 0.1 + 0.05 * i, "sift": 0.3 + 0.05 * i + 0.01 * (i % 3)}
@@ -320,6 +327,20 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     again = (out / TABLE_MD).read_text()
     assert "2 finished (2 already done before this call)" in again
     assert json.loads((out / TABLE_JSON).read_text())["means"] == document["means"]
+    # A method added to the suite file: the recorded sequences are scored again with every
+    # method (none is simulated again), and the new method gets its figures.
+    recorded = sorted(path.stat().st_mtime_ns for path in out.glob("runs/*/sequence/*.json"))
+    widened = tmp_path / "ci_suite.toml"
+    widened.write_text(CI_SUITE.read_text().replace(
+        'methods = ["t2fuzzy", "sift"]', 'methods = ["t2fuzzy", "sift", "ecc"]').replace(
+        '"../ci/ci_corridor.toml"', json.dumps(str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"))))
+    assert run_command(["suite", str(widened), "--out", str(out), "--workers", "2"]) == 0
+    assert "2 finished (0 already done before this call)" in (out / TABLE_MD).read_text()
+    assert sorted(path.stat().st_mtime_ns for path in out.glob("runs/*/sequence/*.json")) \
+        == recorded
+    widened_means = json.loads((out / TABLE_JSON).read_text())["means"]
+    assert widened_means["ecc"]["failure_rate"]["n"] == 2
+    assert {method: widened_means[method] for method in ("t2fuzzy", "sift")} == document["means"]
 
 
 def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):

@@ -215,6 +215,14 @@ def test_only_complete_or_fallen_runs_count_as_done(tmp_path, status, done):
     assert completed_metrics(config.out_dir) is None
 
 
+def test_a_finished_run_counts_as_done_only_for_the_methods_it_scored(tmp_path):
+    config = expand_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path)[0]
+    fake_run(config)
+    assert completed_metrics(config.out_dir, config.methods) is not None
+    assert completed_metrics(config.out_dir, config.methods[:1]) is not None
+    assert completed_metrics(config.out_dir, (*config.methods, "ecc")) is None  # added later
+
+
 def check_table(out_dir: Path, spec, expected_status: dict[str, str]) -> list[dict]:
     """sweep.csv/md and one PNG per scenario exist; rows match what fake_run wrote."""
     rows = read_csv(out_dir / "sweep.csv")
