@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 
 
@@ -18,6 +19,12 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
                             "runs are skipped)")
     suite.add_argument("--workers", type=int, default=None,
                        help="runs at a time (default: every core)")
+    suite.add_argument("--estimates", type=_estimates, action="append", default=None,
+                       metavar="NAME=PATH",
+                       help="estimates of another program, one CSV per sequence (columns "
+                            "frame, angle_deg, dx, dy [, status]); {sequence} in PATH stands "
+                            "for each sequence's folder name, e.g. mine=mine/{sequence}.csv; "
+                            "scored and compared like a method; repeatable")
     suite.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     suite.add_argument("--ray-address", default=None,
                        help="Ray cluster address ('auto', 'ray://host:10001'; default: "
@@ -26,14 +33,27 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
     return suite
 
 
+def _estimates(text: str) -> tuple[str, str]:
+    name, _, path = text.partition("=")
+    if not name or not path:
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=PATH, {{sequence}} in PATH "
+                                         f"standing for each sequence's folder name")
+    return name, str(Path(path).absolute())  # the workers may run in another folder
+
+
 def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.runset import run_on_command_line
-    from sim.harness.suite.run import default_suite_dir, run_suite
+    from sim.harness.suite.run import check_estimates, default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
     spec = load_suite(args.suite_file)
+    estimates = dict(args.estimates or ())
+    if len(estimates) != len(args.estimates or ()):
+        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    check_estimates(spec, estimates)  # before any folder is made
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
-    return run_on_command_line("suite", run_suite, spec, out_dir,
-                               "ray" if args.ray else "local", args.workers, args.ray_address)
+    return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates),
+                               spec, out_dir, "ray" if args.ray else "local", args.workers,
+                               args.ray_address)

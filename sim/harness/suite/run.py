@@ -15,8 +15,8 @@ every method of the file (the same figures for the methods scored before).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from sim.harness.runner import RunConfig
@@ -30,9 +30,22 @@ from sim.harness.sweep.plan import RUNS_FOLDER
 SEQUENCE_FOLDER = "sequence"
 
 
+#: What stands for the sequence's folder name in the path of an estimates file.
+SEQUENCE_FIELD = "{sequence}"
+
+
+@dataclass(frozen=True)
+class SuiteJob(RunConfig):
+    """The RunConfig of one sequence of a suite, and the estimates files of other programs
+    scored beside its methods (name -> this sequence's CSV; docs/sequence-format.md)."""
+
+    estimates: Mapping[str, str] = field(default_factory=dict)
+
+
 def record_then_score(config: RunConfig) -> dict:
     """One sequence of a suite: record it (unless a finished recording is there), then score
-    ``config.methods`` on it; returns the run's metrics, as ``sim.harness.runner.run`` would."""
+    ``config.methods`` (and a :class:`SuiteJob`'s estimates files) on it; returns the run's
+    metrics, as ``sim.harness.runner.run`` would."""
     from sim.harness.runner import RecordConfig, record
     from sim.harness.score import ScoreConfig, score
     from sim.harness.sequence import SEQUENCE_JSON
@@ -41,8 +54,9 @@ def record_then_score(config: RunConfig) -> dict:
     if not _recorded_to_its_end(sequence / SEQUENCE_JSON):
         record(RecordConfig(config.scenario, str(sequence), max_frames=config.max_frames,
                             seed=config.seed, overrides=config.overrides))
+    estimates = dict(config.estimates) if isinstance(config, SuiteJob) else {}
     return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
-                             record=config.record))
+                             estimates=estimates, record=config.record))
 
 
 def _recorded_to_its_end(sequence_json: Path) -> bool:
@@ -57,21 +71,55 @@ def _recorded_to_its_end(sequence_json: Path) -> bool:
 
 @dataclass(frozen=True)
 class SuiteRun:
-    """One run of a suite: its folder name, its sequence and its RunConfig."""
+    """One run of a suite: its folder name, its sequence and its :class:`SuiteJob`."""
 
     name: str
     sequence: SuiteSequence
-    config: RunConfig
+    config: SuiteJob
+
+    @property
+    def scored(self) -> tuple[str, ...]:
+        """The names a finished run must have scored: the methods, then the estimates."""
+        return (*self.config.methods, *self.config.estimates)
 
 
-def plan_suite(spec: SuiteSpec, out_dir: str | os.PathLike) -> list[SuiteRun]:
-    """The run of every sequence of ``spec``, in file order."""
-    return [SuiteRun(sequence.name, sequence, RunConfig(
+def plan_suite(spec: SuiteSpec, out_dir: str | os.PathLike,
+               estimates: Mapping[str, str] | None = None) -> list[SuiteRun]:
+    """The run of every sequence of ``spec``, in file order; ``estimates``: name -> path of
+    each sequence's estimates file, with :data:`SEQUENCE_FIELD` for the sequence's name."""
+    return [SuiteRun(sequence.name, sequence, SuiteJob(
                 scenario=sequence.scenario,
                 out_dir=str(Path(out_dir) / RUNS_FOLDER / sequence.name),
                 methods=spec.methods, record=spec.record, max_frames=spec.max_frames,
-                overrides=dict(sequence.overrides)))
+                overrides=dict(sequence.overrides),
+                estimates={name: _estimates_file(pattern, sequence.name)
+                           for name, pattern in (estimates or {}).items()}))
             for sequence in spec.sequences]
+
+
+def _estimates_file(pattern: str, sequence_name: str) -> str:
+    return pattern.replace(SEQUENCE_FIELD, sequence_name)
+
+
+def check_estimates(spec: SuiteSpec, estimates: Mapping[str, str]) -> None:
+    """A ValueError naming the first estimates file that cannot be scored: a name that is
+    also a method of the suite, a path without :data:`SEQUENCE_FIELD`, a sequence without
+    its file (every sequence needs one; its content is checked when it is scored)."""
+    for name, pattern in estimates.items():
+        if name in spec.methods:
+            raise ValueError(f"--estimates {name}: {name} is also a method of the suite; "
+                             f"accepted: a name no method of the suite has")
+        if SEQUENCE_FIELD not in pattern:
+            raise ValueError(f"--estimates {name}={pattern}: the path has no {SEQUENCE_FIELD}; "
+                             f"accepted: a path in which {SEQUENCE_FIELD} stands for each "
+                             f"sequence's folder name, e.g. mine/{SEQUENCE_FIELD}.csv")
+        missing = [sequence.name for sequence in spec.sequences
+                   if not Path(_estimates_file(pattern, sequence.name)).is_file()]
+        if missing:
+            raise ValueError(f"--estimates {name}: no file "
+                             f"{_estimates_file(pattern, missing[0])} ({len(missing)} of the "
+                             f"suite's {len(spec.sequences)} sequences have none); accepted: one "
+                             f"CSV per sequence (docs/suites.md, \"Your own estimates\")")
 
 
 def default_suite_dir(spec: SuiteSpec, results: str | os.PathLike = "results") -> Path:
@@ -82,12 +130,16 @@ def default_suite_dir(spec: SuiteSpec, results: str | os.PathLike = "results") -
 def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local",
               workers: int | None = None, ray_address: str | None = None,
               run_fn: Callable[[RunConfig], dict] = record_then_score,
-              progress: bool = False) -> SuiteResult:
+              progress: bool = False,
+              estimates: Mapping[str, str] | None = None) -> SuiteResult:
     """Run every sequence of ``spec`` not yet done, then write suite.md, suite.csv, suite.json.
 
     Args:
         spec: from :func:`sim.harness.suite.load_suite`.
         out_dir: the suite's folder (runs in ``runs/<sequence>/``, tables beside them).
+        estimates: name -> path of each sequence's estimates file made by another program,
+            :data:`SEQUENCE_FIELD` standing for the sequence's folder name; each is scored
+            like a method and compared with the suite's methods (:func:`check_estimates`).
         backend: ``"local"`` (a process pool, spawn start method) or ``"ray"``.
         workers: runs at a time; default: every core locally, the cluster's free CPUs on Ray.
         ray_address: for Ray, as in :func:`sim.harness.sweep.run_sweep`.
@@ -99,7 +151,9 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
         The tables are written also when interrupted, from the runs finished by then.
     """
     out_dir = Path(out_dir)
-    return execute_plan(plan_suite(spec, out_dir),
-                        lambda outcomes: write_suite_outputs(out_dir, spec, outcomes),
+    estimates = dict(estimates or {})
+    check_estimates(spec, estimates)
+    return execute_plan(plan_suite(spec, out_dir, estimates),
+                        lambda outcomes: write_suite_outputs(out_dir, spec, outcomes, estimates),
                         backend=backend, workers=workers, ray_address=ray_address,
                         run_fn=run_fn, progress=progress, label="suite runs")

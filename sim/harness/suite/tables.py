@@ -24,7 +24,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -183,11 +183,15 @@ def _finite_or_none(value):
 
 
 def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
-                        outcomes: Sequence[RunOutcome]) -> SuiteResult:
-    """Write suite.md, suite.csv and suite.json (atomically) from the finished runs."""
+                        outcomes: Sequence[RunOutcome],
+                        estimates: Mapping[str, str] | None = None) -> SuiteResult:
+    """Write suite.md, suite.csv and suite.json (atomically) from the finished runs; the
+    estimates files (name -> path of each sequence's file) count as methods after the suite's."""
     out_dir = Path(out_dir)
-    rows = sequence_rows(outcomes, spec.methods)
-    figures = suite_figures(rows, spec.methods)
+    estimates = dict(estimates or {})
+    names = (*spec.methods, *estimates)
+    rows = sequence_rows(outcomes, names)
+    figures = suite_figures(rows, names)
     counted = len({row["sequence"] for row in rows})
     skipped = sum(outcome.skipped for outcome in outcomes)
     failed = sum(bool(outcome.error) for outcome in outcomes)
@@ -199,16 +203,21 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
                  f"resampled) with {CONFIDENCE_LEVEL:.0%} bootstrap intervals: BCa, or the "
                  f"percentile interval where BCa is degenerate; {N_RESAMPLES} resamples, seed "
                  f"{BOOTSTRAP_SEED}.")
+    files_of = [f"Estimates files of other programs, scored beside the methods: "
+                + "; ".join(f"{name} ({path})" for name, path in estimates.items()) + "."
+                ] if estimates else []
     markdown = "\n".join([
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
-        summary, "", intervals, COUNTING, "", "## Means over sequences", "",
+        summary, "", *files_of, *([""] if files_of else []), intervals, COUNTING, "",
+        "## Means over sequences", "",
         means_markdown(figures), "", "## Paired differences",
         "", "Per-sequence differences of two methods on the same sequences, bootstrapped; "
         "lower is better for every figure.", "", differences_markdown(figures), "",
         "## Sequences", "", sequences_markdown(outcomes), ""])
     document = {
         "name": spec.name, "description": spec.description, "source": spec.source,
-        "methods": list(spec.methods), "summary": summary, "counting": COUNTING,
+        "methods": list(spec.methods), "estimates": estimates, "summary": summary,
+        "counting": COUNTING,
         "bootstrap": {"confidence_level": CONFIDENCE_LEVEL, "n_resamples": N_RESAMPLES,
                       "seed": BOOTSTRAP_SEED, "unit": "sequence"},
         "sequences": [{"name": o.run.sequence.name, "scenario": o.run.sequence.scenario,

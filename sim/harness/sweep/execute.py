@@ -59,7 +59,8 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
     The outputs are written also when the runs are interrupted, from the runs finished by then.
 
     Args:
-        plan: the planned runs (anything with ``.name`` and ``.config``, see ``plan_sweep``).
+        plan: the planned runs (anything with ``.name``, ``.config`` and ``.scored``, the
+            methods a finished run must have scored; see ``plan_sweep``).
         write_outputs: writes the tables from the outcomes and returns the result.
         backend: ``"local"`` (a process pool on this machine, spawn start method) or ``"ray"``.
         workers: runs at a time; default: ``os.cpu_count()`` locally, the cluster's free CPUs

@@ -32,6 +32,11 @@ class SweepRun:
     noise_level: float
     config: RunConfig
 
+    @property
+    def scored(self) -> tuple[str, ...] | None:
+        """The methods a finished run must have scored (None: the scenario's)."""
+        return self.config.methods
+
 
 @dataclass(frozen=True)
 class RunOutcome:
@@ -101,7 +106,7 @@ def split_done(plan: Sequence[SweepRun]) -> tuple[list[RunOutcome], list[SweepRu
     """The runs of ``plan`` already done (as skipped outcomes) and those still to run."""
     done, pending = [], []
     for sweep_run in plan:
-        metrics = completed_metrics(sweep_run.config.out_dir, sweep_run.config.methods)
+        metrics = completed_metrics(sweep_run.config.out_dir, sweep_run.scored)
         if metrics is None:
             pending.append(sweep_run)
         else:

@@ -292,6 +292,20 @@ def test_bad_backend_and_workers_are_refused(tmp_path):
         run_suite(small_spec(), tmp_path, workers=0)
 
 
+@pytest.mark.parametrize("estimates, message", [
+    ({"sift": "{sequence}.csv"}, "--estimates sift: sift is also a method of the suite"),
+    ({"mine": "mine.csv"}, "the path has no {sequence}"),
+    ({"mine": "missing/{sequence}.csv"}, r"no file .*missing/corridor_straight__default__"
+                                         r"scene5__seed0.csv \(6 of the suite's 6 sequences"),
+])
+def test_estimates_files_that_cannot_be_scored_are_refused_before_any_work(
+        tmp_path, monkeypatch, estimates, message):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=message):
+        run_suite(small_spec(), tmp_path / "out", estimates=estimates)
+    assert not (tmp_path / "out").exists()
+
+
 # --- The CI suite, for real ------------------------------------------------------------------
 
 def run_command(argv: list[str]) -> int:
@@ -341,6 +355,23 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     widened_means = json.loads((out / TABLE_JSON).read_text())["means"]
     assert widened_means["ecc"]["failure_rate"]["n"] == 2
     assert {method: widened_means[method] for method in ("t2fuzzy", "sift")} == document["means"]
+    # Another program's estimates, one CSV per sequence (here the truth plus known offsets),
+    # are scored and compared like a method.
+    for sequence in out.glob("runs/*/sequence"):
+        with open(sequence / "truth.csv", newline="", encoding="utf-8") as handle:
+            truth = list(csv.DictReader(handle))
+        (tmp_path / f"{sequence.parent.name}.csv").write_text("frame,angle_deg,dx,dy\n" + "".join(
+            f"{row['frame']},{float(row['angle_deg']) + 0.5},{float(row['dx']) - 1.0},"
+            f"{row['dy']}\n" for row in truth))
+    assert run_command(["suite", str(widened), "--out", str(out), "--workers", "2",
+                        "--estimates", f"mine={tmp_path}/{{sequence}}.csv"]) == 0
+    scored = json.loads((out / TABLE_JSON).read_text())
+    assert scored["estimates"] == {"mine": f"{tmp_path}/{{sequence}}.csv"}
+    mine = scored["means"]["mine"]
+    assert mine[ROTATION]["mean"] == pytest.approx(0.5) and mine[ROTATION]["n"] == 2
+    assert mine["failure_rate"]["mean"] == 0.0
+    assert ("t2fuzzy", "mine") in {(d["first"], d["second"]) for d in scored["differences"]}
+    assert scored["means"]["ecc"] == widened_means["ecc"]
 
 
 def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
