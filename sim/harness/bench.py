@@ -374,12 +374,13 @@ def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
 def rescoring(n_frames: int | None = None) -> dict[str, float]:
     """Recording the default scenario, and re-scoring the sequence: speed and parallelism.
 
-    Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``), then times ``egostab score`` of
-    ``t2fuzzy`` alone in this process, twice (as a multiple of real time: the sequence's
-    simulated seconds per wall-clock second; the figure is the faster run, the first also pays
-    the process's first imports of the report and plotting code, about 1 s), and of every method
-    with one and with two worker processes, each twice, alternating (the ratio of the faster
-    runs is the speed-up of ``--workers 2``; a shared machine's load drifts within minutes).
+    Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``), then
+    times ``egostab score`` of ``t2fuzzy`` alone in this process, twice (as a multiple of real
+    time: the sequence's simulated seconds per wall-clock second; the figure is the faster run,
+    the first also pays the process's first imports of the report and plotting code, about
+    1 s), and of every method with one and with two worker processes, each twice, alternating
+    (the ratio of the faster runs is the speed-up of ``--workers 2``; a shared machine's load
+    drifts within minutes).
     """
     from sim.harness.runner import RecordConfig, record
     from sim.harness.score import ScoreConfig, score

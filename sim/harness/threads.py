@@ -52,17 +52,12 @@ def single_thread_environment() -> Iterator[None]:
                 os.environ[name] = value
 
 
-def check_worker_count(workers) -> None:
-    """A ValueError unless ``workers``, a number of worker processes, is an integer >= 1."""
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
-
-
 def worker_count(workers: int | None, wanted: int) -> int:
-    """``workers`` when given (checked: an integer >= 1); else ``wanted`` processes, at most
-    one per core this process may run on, at least 1."""
+    """``workers`` when given (a ValueError unless an integer >= 1); else ``wanted``
+    processes, at most one per core this process may run on, at least 1."""
     if workers is not None:
-        check_worker_count(workers)
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
         return workers
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return max(1, min(wanted, cores or 1))
