@@ -236,7 +236,8 @@ class RotatedTemplate:
             Rotation (Motion convention) the template is turned by before matching.
         near : (float, float), optional
             A previous (dx, dy): only shifts within ``radius`` pixels of it are searched
-            (cheap). Default: the whole +-``margin`` range.
+            (cheap). Default, or when it is not finite (no previous shift was found): the
+            whole +-``margin`` range.
         radius : int, optional
             Half-width of the search around ``near``. Default 2.
 
@@ -248,7 +249,7 @@ class RotatedTemplate:
         template, mask = self.template(angle_deg)
         left = top = 0
         image = current
-        if near is not None:
+        if near is not None and math.isfinite(near[0]) and math.isfinite(near[1]):
             left = min(max(round(near[0]) + self.margin - radius, 0), 2 * self.margin)
             top = min(max(round(near[1]) + self.margin - radius, 0), 2 * self.margin)
             right = min(left + self.size[0] + 2 * radius, current.shape[1])

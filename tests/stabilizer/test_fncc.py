@@ -1,5 +1,7 @@
 """Stage 6: FNCC (cv2.matchTemplate TM_CCOEFF_NORMED) with parabolic sub-pixel peak."""
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -90,6 +92,17 @@ def test_rotated_template_finds_the_shift_in_the_motion_convention(motion):
                                   pytest.approx(whole.y, abs=1e-2))
     wrong_angle = template.match(current, motion.angle_deg + 3.0)
     assert wrong_angle.height < whole.height
+
+
+def test_a_non_finite_previous_shift_searches_the_whole_range():
+    # A match that found no peak has a NaN shift; a search "near" it is a search everywhere.
+    reference = _textured(seed=5)
+    motion = Motion(4.0, 12.3, -7.6)
+    current = apply_motion(reference, motion, cv2.INTER_LINEAR)
+    template = RotatedTemplate(reference, margin=44)
+    whole = template.match(current, motion.angle_deg)
+    for near in ((math.nan, math.nan), (math.nan, 3.0), (math.inf, 0.0)):
+        assert template.match(current, motion.angle_deg, near) == whole
 
 
 def test_half_resolution_template_with_the_full_frame_centre():

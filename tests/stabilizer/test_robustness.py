@@ -564,6 +564,19 @@ def test_identical_frames_give_zero_motion_or_fail(method):
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_a_frame_whose_central_template_is_flat_at_every_rotation_fails_without_a_crash(method):
+    # Found by benchmarks/trust_properties.py --seed 203: the identical frames of a 113 x 104
+    # scene whose central template is flat, so no correlation peak anywhere; the rotation
+    # search then climbed from a NaN shift and raised (ValueError from round(nan)).
+    frame = depth_to_disparity(make_depth_scene(745873454, (113, 104), n_objects=6,
+                                                floor=False))
+    motion = estimate(frame, frame.copy(), method)
+    if motion.ok:
+        angle, shift = errors(motion, Motion(0.0, 0.0, 0.0))
+        assert angle <= STILL_DEG and shift <= STILL_PX, f"invented {motion.as_tuple()}"
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_a_known_motion_is_found_or_fails(method):
     rng = method_rng(method, 2)
     for case in range(CASES_PER_PROPERTY):
