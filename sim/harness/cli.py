@@ -103,6 +103,15 @@ def _estimates(text: str) -> tuple[str, str]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def _sequence_name(sequence: Path) -> str:
+    """A sequence folder's name; for a suite's (``runs/<name>/sequence``), its run's name, so
+    that scoring several of a suite's sequences does not write them all to one folder."""
+    from sim.harness.suite.run import SEQUENCE_FOLDER
+
+    folder = Path(sequence).absolute()
+    return folder.parent.name if folder.name == SEQUENCE_FOLDER else folder.name
+
+
 def _cmd_score(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.report import terminal_summary
@@ -113,7 +122,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
     if len(estimates) != len(args.estimates or ()):
         raise ValueError("--estimates: a name given twice; accepted: each NAME once")
     load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
-    out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / Path(args.sequence).name)
+    out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
     metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
                                 methods=args.methods, estimates=estimates,
                                 record=not args.no_record, workers=args.workers,
@@ -253,7 +262,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="estimates of another program: columns frame, angle_deg, dx, dy "
                              "[, status]; named NAME or the file's stem; repeatable")
     scorer.add_argument("--out", type=Path, default=None,
-                        help="run folder (default: results/<sequence folder name>)")
+                        help="run folder (default: results/<sequence folder name>; for a "
+                             "suite's runs/<name>/sequence, results/<name>)")
     scorer.add_argument("--workers", type=_worker_count, default=None,
                         help="processes running the methods, one thread each; 1: this "
                              "process (default: one per core)")

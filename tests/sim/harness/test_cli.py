@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -189,3 +190,14 @@ def test_score_of_a_folder_that_is_no_sequence_is_one_line_and_status_2(tmp_path
     err = capsys.readouterr().err.strip()
     assert "sequence.json" in err and "\n" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_scores_default_folder_is_named_after_its_sequence_or_its_suite_run(tmp_path,
+                                                                              monkeypatch):
+    from sim.harness.cli import _sequence_name
+
+    assert _sequence_name(Path("sequences/corridor_straight")) == "corridor_straight"
+    assert _sequence_name(Path("results/suites/heldout/runs/office__default__scene1000__seed0/"
+                               "sequence")) == "office__default__scene1000__seed0"
+    monkeypatch.chdir(tmp_path)
+    assert _sequence_name(Path(".")) == tmp_path.name
