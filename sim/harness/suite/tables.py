@@ -203,12 +203,11 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
                  f"resampled) with {CONFIDENCE_LEVEL:.0%} bootstrap intervals: BCa, or the "
                  f"percentile interval where BCa is degenerate; {N_RESAMPLES} resamples, seed "
                  f"{BOOTSTRAP_SEED}.")
-    files_of = [f"Estimates files of other programs, scored beside the methods: "
-                + "; ".join(f"{name} ({path})" for name, path in estimates.items()) + "."
-                ] if estimates else []
+    estimates_line = ("Estimates files of other programs, scored beside the methods: "
+                      + "; ".join(f"{name} ({path})" for name, path in estimates.items()) + ".")
     markdown = "\n".join([
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
-        summary, "", *files_of, *([""] if files_of else []), intervals, COUNTING, "",
+        summary, "", *([estimates_line, ""] if estimates else []), intervals, COUNTING, "",
         "## Means over sequences", "",
         means_markdown(figures), "", "## Paired differences",
         "", "Per-sequence differences of two methods on the same sequences, bootstrapped; "
