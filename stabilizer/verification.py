@@ -74,11 +74,15 @@ class VerificationParams:
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). Default 10.
-        convincing_correlation: below this optimum correlation the check looks for another
-            explanation over the grid of angles too, not only among the shifts at the
-            estimate's angle (:meth:`Verifier.candidate`), and an estimate that turns beyond
-            the grid (plus ``max_offset_deg``), where no search looks, is ambiguous. Default
-            0.7: the median accurate walking estimate's optimum scores about 0.68.
+        full_resolution_offset_deg: when the climb, at half resolution, ends more than this
+            from the estimate in rotation, it goes on from there at full resolution, where the
+            optimum may lie a few degrees farther: test 3 then judges the estimate against the
+            optimum of the frames' full edge images. Default 1.5 degrees, half the offset
+            limit (docs/method.md, section 11, "Fresh seeds"); ``math.inf``: never.
+        convincing_correlation: an estimate that turns beyond the grid of angles (plus
+            ``max_offset_deg``), where no search looks for rivals, is ambiguous when its
+            optimum scores below this. Default 0.7: the median accurate walking estimate's
+            optimum scores about 0.68.
         candidate_margin: another explanation fails the estimate when it scores better than
             the estimate less this: the frames are then explained about as well elsewhere, and
             the check cannot tell which motion is right. Default 0.05 (docs/method.md, section
@@ -108,6 +112,7 @@ class VerificationParams:
     sigma_px: float = 2.0
     clip_factor: float = 5.0
     optimum_iterations: int = 10
+    full_resolution_offset_deg: float = 1.5
     convincing_correlation: float = 0.7
     candidate_margin: float = 0.05
     outside_margin: float = 0.1
@@ -130,6 +135,9 @@ class VerificationParams:
                              f"{self.still_deg}, {self.still_px}")
         if self.optimum_iterations < 1:
             raise ValueError(f"optimum_iterations must be >= 1; got {self.optimum_iterations}")
+        if not self.full_resolution_offset_deg >= 0:
+            raise ValueError(f"full_resolution_offset_deg must be >= 0 (math.inf: never); got "
+                             f"{self.full_resolution_offset_deg}")
         if not self.candidate_angles_deg:
             raise ValueError("candidate_angles_deg must hold at least one angle")
 
@@ -242,7 +250,9 @@ class Verifier:
     From the estimate, the check first finds the nearest optimum of its own measure: ECC
     (``cv2.findTransformECCWithMask``, Euclidean; Evangelidis & Psarakis 2008) maximises the
     correlation of the two edge images, at half resolution, starting at the estimate
-    (:meth:`local_optimum`). An ``"ok"`` estimate then passes when
+    (:meth:`local_optimum`), and on at full resolution when it ends more than
+    ``full_resolution_offset_deg`` from the estimate (:meth:`full_resolution_optimum`). An
+    ``"ok"`` estimate then passes when
 
     1. the compensated current frame covers at least ``min_overlap`` of the reference's
        measured pixels;
@@ -256,11 +266,10 @@ class Verifier:
        ``convincing_correlation``): no search looks for rivals that far out; and no motion
        beyond the offset limits explains the frames about as well or better: not a
        shift at the estimate's rotation (every shift is scored, :meth:`shift_rival`; the
-       continuation of a ridge through the estimate counts), nor,
-       unless the optimum is convincing (correlation at least ``convincing_correlation``) and
-       the estimate turns within the grid of angles, the best motion of a search over that grid
-       (:meth:`candidate`, climbed to its own optimum; :meth:`_rival_candidate`): the estimate
-       is not on a false peak, nor on one of two peaks the check cannot tell apart;
+       continuation of a ridge through the estimate counts), nor the best motion of a search
+       over the grid of angles (:meth:`candidate`, climbed to its own optimum;
+       :meth:`_rival_candidate`): the estimate is not on a false peak, nor on one of two peaks
+       the check cannot tell apart;
     5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
@@ -348,10 +357,23 @@ class Verifier:
         motion : Motion
             The start (docs/design.md convention).
         """
+        return self._ecc(self._reference_half, current_half, motion, 0.5)
+
+    def full_resolution_optimum(self, current_edges: tuple[np.ndarray, np.ndarray],
+                                motion: Motion) -> Motion | None:
+        """:meth:`local_optimum` on the full-resolution edge images (:func:`edge_image` of
+        the current frame), at four times the cost."""
+        return self._ecc(self._reference, current_edges, motion, 1.0)
+
+    def _ecc(self, reference_edges: tuple[np.ndarray, np.ndarray],
+             current_edges: tuple[np.ndarray, np.ndarray], motion: Motion,
+             scale: float) -> Motion | None:
+        """ECC (Euclidean) from ``motion`` on edge images at ``scale`` times full resolution,
+        or None when it gives up."""
         shape = self._reference[0].shape
         warp = motion_matrix(motion, shape).astype(np.float32)
-        warp[:, 2] *= 0.5
-        (reference, reference_mask), (current, current_mask) = self._reference_half, current_half
+        warp[:, 2] *= scale
+        (reference, reference_mask), (current, current_mask) = reference_edges, current_edges
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
                     self.params.optimum_iterations, 1e-3)
         # ECC raises when its iterations do not converge (noisy frames, a start far down the
@@ -365,7 +387,7 @@ class Verifier:
                                                         gauss_size)
             except cv2.error:
                 continue
-            found[:, 2] *= 2.0
+            found[:, 2] /= scale
             return motion_from_matrix(found, shape)
         return None
 
@@ -401,6 +423,10 @@ class Verifier:
         null_correlation = current.null_correlation
         correlation, overlap = structure_correlation(*self._reference, *current_edges, motion)
         optimum = self.local_optimum(current_half, motion)
+        if optimum is not None:  # the half-resolution climb may stop short of the optimum
+            turn = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
+            if turn > params.full_resolution_offset_deg:
+                optimum = self.full_resolution_optimum(current_edges, optimum) or optimum
         if optimum is None:  # no optimum found: the estimate is judged by itself
             optimum, optimum_correlation = motion, correlation
         else:
@@ -515,30 +541,30 @@ class Verifier:
         """A motion at another rotation than ``motion`` that explains the frames about as well
         or better, or None.
 
-        The :meth:`candidate` of the grid of angles is searched when the optimum near the
-        estimate (``optimum``, within the offset limits of ``motion``) is not convincing (its
-        correlation below ``convincing_correlation``) or the estimate turns by more than the
-        grid's angles (plus ``max_offset_deg``); the estimate's own rotation is searched by
-        :meth:`shift_rival`. The candidate, climbed to its :meth:`local_optimum`, wins when it
-        lies beyond the offset limits of the estimate and correlates better than the estimate's
-        optimum less ``candidate_margin`` (two peaks that close cannot be told apart); against
-        an estimate outside the searched angles, less ``outside_margin``: a turn beyond the
-        walking range must explain the frames clearly better than one within it (a half turn
-        can line up a point-symmetric object, say a box, as well as the truth).
+        The :meth:`candidate` of the grid of angles is searched for every estimate, however
+        well its optimum (``optimum``, within the offset limits of ``motion``) scores: a false
+        peak of a repeated or symmetric structure can score as high as the truth (the
+        estimate's own rotation is searched by :meth:`shift_rival`). The candidate, climbed to
+        its :meth:`local_optimum`, wins when it lies beyond the offset limits of the estimate
+        and correlates better than the estimate's optimum less ``candidate_margin`` (two peaks
+        that close cannot be told apart); against an estimate outside the searched angles, less
+        ``outside_margin``: a turn beyond the walking range must explain the frames clearly
+        better than one within it (a half turn can line up a point-symmetric object, say a
+        box, as well as the truth). The candidate itself, on the grid, is no rival: a grid
+        angle 2.5 degrees from a true turn lines the frames up almost as well as the turn
+        (docs/method.md, section 11, "Fresh seeds").
 
-        A candidate within the offset limits of ``optimum`` agrees with the estimate and is not
-        climbed: the climb from there ends at that optimum (of 393 such candidates on the walking
-        frames of docs/method.md, section 11, "Cost", climbed anyway, one ended beyond the offset
-        limits of the estimate). Nor is the correlation of a refined candidate within the offset
-        limits of the estimate measured: it cannot fail the estimate.
+        A candidate within the offset limits of both ``optimum`` and the estimate agrees with
+        the estimate and is not climbed: the climb from there ends at that optimum (of 393 such
+        candidates on the walking frames of docs/method.md, section 11, "Cost", climbed anyway,
+        one ended beyond the offset limits of the estimate). Nor is the correlation of a motion
+        within the offset limits of the estimate measured: it cannot fail the estimate.
         """
         params = self.params
-        if not beyond and optimum_correlation >= params.convincing_correlation:
-            return None
         if current.candidate is None:
             current.candidate = self.candidate(current.half)
         candidate = current.candidate
-        if not self._beyond_offset(candidate, optimum):
+        if not (self._beyond_offset(candidate, optimum) or self._beyond_offset(candidate, motion)):
             return None
         refined = self.local_optimum(current.half, candidate) or candidate
         if not self._beyond_offset(refined, motion):
