@@ -115,12 +115,10 @@ def _sequence_name(sequence: Path) -> str:
 def _cmd_score(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.report import terminal_summary
-    from sim.harness.score import ScoreConfig, score
+    from sim.harness.score import ScoreConfig, estimates_by_name, score
     from sim.harness.sequence import load_sequence
 
-    estimates = dict(args.estimates or ())
-    if len(estimates) != len(args.estimates or ()):
-        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    estimates = estimates_by_name(args.estimates)
     load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
     out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
     metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),

@@ -20,7 +20,7 @@ import os
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 #: Chunks per worker: many, so that no worker is left alone with a long chunk at the end (a
 #: chunk is cut only where the reference changes, so each reference is still analysed once).
@@ -226,6 +226,15 @@ def parse_estimates_argument(text: str) -> tuple[str, str]:
     if not name or not path:
         raise ValueError(f"--estimates {text!r}: accepted: FILE.csv or NAME=FILE.csv")
     return name, path
+
+
+def estimates_by_name(pairs: Sequence[tuple[str, str]] | None) -> dict[str, str]:
+    """The ``--estimates`` arguments, (name, path) pairs, as name -> path; a ValueError when a
+    name is given twice."""
+    estimates = dict(pairs or ())
+    if len(estimates) != len(pairs or ()):
+        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    return estimates
 
 
 # -- methods: in this process, or in worker processes -------------------------------------------

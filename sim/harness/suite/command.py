@@ -45,13 +45,12 @@ def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.runset import run_on_command_line
+    from sim.harness.score import estimates_by_name
     from sim.harness.suite.run import check_estimates, default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
     spec = load_suite(args.suite_file)
-    estimates = dict(args.estimates or ())
-    if len(estimates) != len(args.estimates or ()):
-        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    estimates = estimates_by_name(args.estimates)
     check_estimates(spec, estimates)  # before any folder is made
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
     return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates),

@@ -168,6 +168,16 @@ def test_a_method_given_twice_is_refused(capsys):
     assert "sift given more than once" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", [
+    ["score", "no_sequence", "--estimates", "a=x.csv", "--estimates", "a=y.csv"],
+    ["suite", str(SCENARIOS_DIR / "suites" / "heldout.toml"),
+     "--estimates", "a=x/{sequence}.csv", "--estimates", "a=y/{sequence}.csv"]])
+def test_an_estimates_name_given_twice_is_refused(command, tmp_path, capsys):
+    assert main([*command, "--out", str(tmp_path / "out")]) == 2
+    assert "a name given twice" in _one_line_error(capsys, command[0])
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):
     from sim.harness.ideal import MAX_IMAGE_PIXELS, load_image
 
