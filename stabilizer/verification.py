@@ -6,8 +6,9 @@ compared with the reference on the pixels both measure, and an estimate that doe
 two frames up, or that is not where they line up best, becomes a failure with the status
 ``"unverified"``. The comparison is :func:`structure_correlation`, the correlation of the frames'
 depth edges; the check climbs from the estimate to the nearest optimum of that correlation
-(:meth:`Verifier.local_optimum`) and judges the estimate against it. Why that measure, the
-tests and these thresholds: docs/method.md, section 11.
+(:meth:`Verifier.local_optimum`) and judges the estimate against it; the depths themselves must
+agree too (:func:`depth_disagreement`). Why these measures, the tests and these thresholds:
+docs/method.md, section 11.
 """
 
 from __future__ import annotations
@@ -37,6 +38,8 @@ UNVERIFIED = "unverified"
 #: walking frames of docs/method.md, section 11, the whole frame decided as this did, at 0.6x
 #: the cost.
 RIVAL_REACH_PX = 72
+#: Every uint8 disparity, for the depth test's table of tolerances.
+_LEVELS = np.arange(256, dtype=np.float32)
 #: Smallest clip limit of the edge responses (gray levels per pixel²): a scene of flat
 #: surfaces has a median response of 0, and its depth steps then count by their sign.
 MIN_CLIP = 0.01
@@ -98,6 +101,19 @@ class VerificationParams:
             (it leaves less than ``min_overlap``, or a flat overlap) fails the estimate too.
             A negative margin asks the next shifts to score better than the best. Default 0.03
             (docs/method.md, section 11, "Ridges").
+        depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
+            compensated current frame disagrees in depth with the reference when its disparity
+            lies more than the larger of the first two (gray levels; a share of its own
+            disparity), plus the third times the current frame's noise (:func:`noise_level`),
+            outside the range of the reference's disparities within one pixel of it. Defaults 4
+            levels, 0.2 and 2: the walking camera's own translation changes the distances of
+            near surfaces by up to a fifth between a frame and its reference (docs/method.md,
+            section 11, "Depth").
+        max_depth_disagreement: the largest share of the pixels both frames measure that may
+            disagree in depth under the estimate (:func:`depth_disagreement`). Default 0.08:
+            one rigid scene seen twice agrees in depth where the edges line up; two scenes that
+            share only a floor, whose objects' edges a sideways shift lines up, do not
+            (docs/method.md, section 11, "Depth"). 1: off.
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
     """
@@ -117,6 +133,10 @@ class VerificationParams:
     candidate_margin: float = 0.05
     outside_margin: float = 0.1
     ridge_margin: float = 0.03
+    depth_tolerance_levels: float = 4.0
+    depth_tolerance_share: float = 0.2
+    depth_tolerance_noise: float = 2.0
+    max_depth_disagreement: float = 0.08
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
 
     def __post_init__(self):
@@ -138,6 +158,13 @@ class VerificationParams:
         if not self.full_resolution_offset_deg >= 0:
             raise ValueError(f"full_resolution_offset_deg must be >= 0 (math.inf: never); got "
                              f"{self.full_resolution_offset_deg}")
+        if min(self.depth_tolerance_levels, self.depth_tolerance_share,
+               self.depth_tolerance_noise) < 0 or not 0.0 <= self.max_depth_disagreement <= 1.0:
+            raise ValueError(f"depth_tolerance_levels, depth_tolerance_share and "
+                             f"depth_tolerance_noise must be >= 0 and max_depth_disagreement in "
+                             f"[0, 1]; got {self.depth_tolerance_levels}, "
+                             f"{self.depth_tolerance_share}, {self.depth_tolerance_noise}, "
+                             f"{self.max_depth_disagreement}")
         if not self.candidate_angles_deg:
             raise ValueError("candidate_angles_deg must hold at least one angle")
 
@@ -244,6 +271,92 @@ def structure_correlation(reference_edges: np.ndarray, reference_measured: np.nd
     return (float(np.dot(a, b)) / norm if norm > 0 else -1.0), overlap
 
 
+def disparity_range(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and the largest disparity within one pixel of each pixel (3 x 3 erosion
+    and dilation of ``image``, a uint8 disparity-like frame, 0 = invalid): the values a pixel
+    of another frame lined up with it to within a pixel may take."""
+    window = np.ones((3, 3), np.uint8)
+    return cv2.erode(image, window), cv2.dilate(image, window)
+
+
+def noise_level(image: np.ndarray) -> float:
+    """A robust standard deviation of ``image``'s noise (uint8, 0 = invalid), in gray levels:
+    1.4826 times the median absolute difference from the 3 x 3 median, over the pixels whose
+    3 x 3 neighbourhood is measured; 0 when there are none. Smooth surfaces and depth steps
+    leave the median as it is, noise does not."""
+    valid = (image > 0).view(np.uint8)
+    inner = cv2.erode(valid, np.ones((3, 3), np.uint8), borderValue=0)
+    residuals = cv2.absdiff(image, cv2.medianBlur(image, 3))
+    # The median from the residuals' histogram (uint8): np.median's value, without a sort.
+    counts = cv2.calcHist([residuals], [0], inner, [256], [0, 256]).ravel()
+    n = int(counts.sum())
+    if not n:
+        return 0.0
+    cumulative = np.cumsum(counts)
+
+    def smallest(k: int) -> int:  # the k-th smallest residual, from 0
+        return int(np.searchsorted(cumulative, k + 1))
+
+    median = smallest(n // 2) if n % 2 else (smallest(n // 2 - 1) + smallest(n // 2)) / 2.0
+    return 1.4826 * float(median)
+
+
+def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray, np.ndarray],
+                       current: np.ndarray, motion: Motion, tolerance_levels: float,
+                       tolerance_share: float, tolerance_noise: float) -> float:
+    """Share of the pixels measured in both frames where the compensated current frame
+    disagrees in depth with the reference.
+
+    The current frame is compensated by ``motion`` (the inverse warp, nearest neighbour, so
+    that no disparity is invented between a near and a far surface) and a pixel disagrees when
+    its disparity d lies more than max(``tolerance_levels``, ``tolerance_share`` d) +
+    ``tolerance_noise`` sigma below the smallest or above the largest of the reference's within
+    one pixel (:func:`disparity_range`), sigma being the current frame's :func:`noise_level`:
+    a misalignment of a pixel at a depth step, a surface the camera's translation brought a
+    fifth closer, or the current pixel's own noise (the reference's is within its range) still
+    agrees. Two views of one rigid scene agree almost everywhere once
+    lined up; two scenes that only share a floor disagree wherever one has an object and the
+    other does not, even where the edges of their objects line up.
+
+    Parameters
+    ----------
+    reference : (H, W) uint8 ndarray
+        Disparity-like reference, 0 = invalid.
+    reference_range : ((H, W) uint8, (H, W) uint8)
+        :func:`disparity_range` of ``reference``.
+    current : (H, W) uint8 ndarray
+        Disparity-like current frame, 0 = invalid.
+    motion : Motion
+        The estimate (docs/design.md convention).
+    tolerance_levels, tolerance_share, tolerance_noise : float
+        The tolerance: gray levels, a share of the current pixel's disparity, and multiples of
+        the current frame's noise.
+
+    Returns
+    -------
+    float
+        In [0, 1]; 1 when no pixel is measured in both.
+    """
+    height, width = reference.shape
+    compensated = cv2.warpAffine(current, motion_matrix(motion, reference.shape), (width, height),
+                                 flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    both = cv2.min(reference, compensated) > 0
+    n_both = int(np.count_nonzero(both))
+    if not n_both:
+        return 1.0
+    # The tolerance of every disparity d, floored: for integers, d < low - t exactly when
+    # low - d > floor(t) (and d > high + t when d - high > floor(t)), so uint8 arithmetic
+    # (cv2.subtract saturates at 0) decides as the float comparison would.
+    tolerance = (np.maximum(np.float32(tolerance_levels), np.float32(tolerance_share) * _LEVELS)
+                 + np.float32(tolerance_noise * noise_level(current)))
+    allowed = cv2.LUT(compensated, np.minimum(np.floor(tolerance), 255).astype(np.uint8))
+    low, high = reference_range
+    disagree = ((cv2.subtract(low, compensated) > allowed)
+                | (cv2.subtract(compensated, high) > allowed))
+    return float(np.count_nonzero(disagree & both)) / n_both
+
+
 class Verifier:
     """The trust check of estimates against one reference, whose edge image is made once.
 
@@ -261,7 +374,10 @@ class Verifier:
     3. the estimate lies within ``max_offset_deg`` and ``max_offset_px`` of the optimum: no
        nearby motion explains the frames clearly better (a wrong estimate that still overlaps
        some edges is not at the optimum);
-    4. an estimate that turns beyond the searched angles ``candidate_angles_deg`` (plus
+    4. at most ``max_depth_disagreement`` of the pixels both frames measure disagree in depth
+       under the estimate (:func:`depth_disagreement`): the frames show the same surfaces at
+       the same distances, not only depth steps in the same places;
+    5. an estimate that turns beyond the searched angles ``candidate_angles_deg`` (plus
        ``max_offset_deg``) has a convincing optimum (correlation at least
        ``convincing_correlation``): no search looks for rivals that far out; and no motion
        beyond the offset limits explains the frames about as well or better: not a
@@ -270,7 +386,7 @@ class Verifier:
        over the grid of angles (:meth:`candidate`, climbed to its own optimum;
        :meth:`_rival_candidate`): the estimate is not on a false peak, nor on one of two peaks
        the check cannot tell apart;
-    5. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
+    6. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
        not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
        ``still_px``: no invented motion.
 
@@ -288,13 +404,15 @@ class Verifier:
 
     def __init__(self, reference: np.ndarray, params: VerificationParams = VerificationParams()):
         self.params = params
+        self._reference_disparity = reference
+        self._reference_range = disparity_range(reference)
         self._reference = edge_image(reference, params.sigma_px, params.clip_factor)
         self._reference_half = _half_resolution(*self._reference)
         half = self._reference_half[0]
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
         self._padded_shape = tuple(even_dft_size(n) for n in half.shape)
         self._reference_windowed = self._windowed(half)
-        # Every shift with an overlap, at half resolution (test 4).
+        # Every shift with an overlap, at half resolution (test 5).
         reach = min(RIVAL_REACH_PX // 2, min(half.shape) - 1)
         self._shifts = MaskedCorrelation(half.shape, reach, params.min_overlap)
         self._reference_shifts = self._shifts.spectra(half, self._reference_half[1].view(bool),
@@ -396,7 +514,7 @@ class Verifier:
         :meth:`check` (one set serves the checks of several estimates of one frame)."""
         edges = edge_image(current, self.params.sigma_px, self.params.clip_factor)
         null_correlation, _ = structure_correlation(*self._reference, *edges)
-        return CurrentEdges(edges, _half_resolution(*edges), null_correlation)
+        return CurrentEdges(current, edges, _half_resolution(*edges), null_correlation)
 
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
         """:meth:`check` of ``motion`` on the :meth:`measure` of ``current``."""
@@ -407,9 +525,9 @@ class Verifier:
         ``verify_correlation``, ``verify_overlap``, ``verify_null_correlation`` (the
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
-        optimum); otherwise a failed Motion with the status ``"unverified"``, the same
+        optimum), ``verify_depth_disagreement``; otherwise a failed Motion with the status ``"unverified"``, the same
         diagnostics, ``verify_failed`` (``"overlap"``, ``"correlation"``, ``"not_optimum"``,
-        ``"ambiguous"`` or ``"no_motion"``: the first test failed; a turn beyond the searched
+        ``"depth"``, ``"ambiguous"`` or ``"no_motion"``: the first test failed; a turn beyond the searched
         angles without a convincing optimum adds ``verify_beyond_search`` (True), a rival
         ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
         (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
@@ -434,15 +552,22 @@ class Verifier:
                                                            optimum)
         offset_deg = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
         offset_px = math.hypot(optimum.dx - motion.dx, optimum.dy - motion.dy)
+        disagreement = depth_disagreement(self._reference_disparity, self._reference_range,
+                                          current.disparity, motion,
+                                          params.depth_tolerance_levels,
+                                          params.depth_tolerance_share,
+                                          params.depth_tolerance_noise)
         diagnostics = dict(motion.diagnostics, verify_correlation=correlation,
                            verify_overlap=overlap, verify_null_correlation=null_correlation,
                            verify_optimum=optimum.as_tuple(),
                            verify_optimum_correlation=optimum_correlation,
-                           verify_offset_deg=offset_deg, verify_offset_px=offset_px)
+                           verify_offset_deg=offset_deg, verify_offset_px=offset_px,
+                           verify_depth_disagreement=disagreement)
         failed = ("overlap" if overlap < params.min_overlap else
                   "correlation" if max(correlation, optimum_correlation) < params.min_correlation
                   else "not_optimum" if (offset_deg > params.max_offset_deg
-                                         or offset_px > params.max_offset_px) else None)
+                                         or offset_px > params.max_offset_px)
+                  else "depth" if disagreement > params.max_depth_disagreement else None)
         beyond = self._beyond_search(motion)
         if failed is None and beyond and optimum_correlation < params.convincing_correlation:
             # No search looks for rivals near a turn beyond the grid of angles: only a
@@ -594,6 +719,7 @@ class CurrentEdges:
     (:meth:`Verifier.measure`).
 
     Attributes:
+        disparity: the frame itself (uint8, 0 = invalid), for :func:`depth_disagreement`.
         edges: the frame's :func:`edge_image` (response, measured mask).
         half: the same at half resolution.
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
@@ -601,6 +727,7 @@ class CurrentEdges:
             (:meth:`Verifier.candidate`), once a check has needed it; None before.
     """
 
+    disparity: np.ndarray
     edges: tuple[np.ndarray, np.ndarray]
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
