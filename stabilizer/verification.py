@@ -82,6 +82,12 @@ class VerificationParams:
             optimum may lie a few degrees farther: test 3 then judges the estimate against the
             optimum of the frames' full edge images. Default 1.5 degrees, half the offset
             limit (docs/method.md, section 11, "Fresh seeds"); ``math.inf``: never.
+        full_resolution_travel_deg: when the climb from the grid's candidate
+            (:meth:`Verifier.candidate`), at half resolution, ends more than this from it, the
+            candidate is climbed at full resolution too, and either end may be the rival of
+            test 5. Default 5 degrees, the grid's step: a climb that ends beyond the next angle
+            of the grid, which the search ranked below the candidate, has gone astray on the
+            coarse edges (docs/method.md, section 11, "Astray climbs"); ``math.inf``: never.
         convincing_correlation: an estimate that turns beyond the grid of angles (plus
             ``max_offset_deg``), where no search looks for rivals, is ambiguous when its
             optimum scores below this. Default 0.7: the median accurate walking estimate's
@@ -129,6 +135,7 @@ class VerificationParams:
     clip_factor: float = 5.0
     optimum_iterations: int = 10
     full_resolution_offset_deg: float = 1.5
+    full_resolution_travel_deg: float = 5.0
     convincing_correlation: float = 0.7
     candidate_margin: float = 0.05
     outside_margin: float = 0.1
@@ -155,6 +162,9 @@ class VerificationParams:
                              f"{self.still_deg}, {self.still_px}")
         if self.optimum_iterations < 1:
             raise ValueError(f"optimum_iterations must be >= 1; got {self.optimum_iterations}")
+        if not self.full_resolution_travel_deg >= 0:
+            raise ValueError(f"full_resolution_travel_deg must be >= 0 (math.inf: never); got "
+                             f"{self.full_resolution_travel_deg}")
         if not self.full_resolution_offset_deg >= 0:
             raise ValueError(f"full_resolution_offset_deg must be >= 0 (math.inf: never); got "
                              f"{self.full_resolution_offset_deg}")
@@ -314,9 +324,9 @@ def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray,
     one pixel (:func:`disparity_range`), sigma being the current frame's :func:`noise_level`:
     a misalignment of a pixel at a depth step, a surface the camera's translation brought a
     fifth closer, or the current pixel's own noise (the reference's is within its range) still
-    agrees. Two views of one rigid scene agree almost everywhere once
-    lined up; two scenes that only share a floor disagree wherever one has an object and the
-    other does not, even where the edges of their objects line up.
+    agrees. Two views of one rigid scene agree almost everywhere once lined up; two scenes that
+    only share a floor disagree wherever one has an object and the other does not, even where
+    the edges of their objects line up.
 
     Parameters
     ----------
@@ -525,10 +535,11 @@ class Verifier:
         ``verify_correlation``, ``verify_overlap``, ``verify_null_correlation`` (the
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
-        optimum), ``verify_depth_disagreement``; otherwise a failed Motion with the status ``"unverified"``, the same
-        diagnostics, ``verify_failed`` (``"overlap"``, ``"correlation"``, ``"not_optimum"``,
-        ``"depth"``, ``"ambiguous"`` or ``"no_motion"``: the first test failed; a turn beyond the searched
-        angles without a convincing optimum adds ``verify_beyond_search`` (True), a rival
+        optimum), ``verify_depth_disagreement``; otherwise a failed Motion with the status
+        ``"unverified"``, the same diagnostics, ``verify_failed`` (``"overlap"``,
+        ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"ambiguous"`` or ``"no_motion"``:
+        the first test failed; a turn beyond the searched angles without a convincing optimum
+        adds ``verify_beyond_search`` (True), a rival
         ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
         (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
         estimate's score on the same scale, and ``verify_ridge``) and the rejected
@@ -669,9 +680,11 @@ class Verifier:
         The :meth:`candidate` of the grid of angles is searched for every estimate, however
         well its optimum (``optimum``, within the offset limits of ``motion``) scores: a false
         peak of a repeated or symmetric structure can score as high as the truth (the
-        estimate's own rotation is searched by :meth:`shift_rival`). The candidate, climbed to
-        its :meth:`local_optimum`, wins when it lies beyond the offset limits of the estimate
-        and correlates better than the estimate's optimum less ``candidate_margin`` (two peaks
+        estimate's own rotation is searched by :meth:`shift_rival`). The candidate is climbed to
+        its :meth:`local_optimum`, and also to its :meth:`full_resolution_optimum` when the
+        half-resolution climb ends more than ``full_resolution_travel_deg`` from it. The better
+        end beyond the offset limits of the estimate wins when it correlates better than the
+        estimate's optimum less ``candidate_margin`` (two peaks
         that close cannot be told apart); against an estimate outside the searched angles, less
         ``outside_margin``: a turn beyond the walking range must explain the frames clearly
         better than one within it (a half turn can line up a point-symmetric object, say a
@@ -691,10 +704,16 @@ class Verifier:
         candidate = current.candidate
         if not (self._beyond_offset(candidate, optimum) or self._beyond_offset(candidate, motion)):
             return None
-        refined = self.local_optimum(current.half, candidate) or candidate
-        if not self._beyond_offset(refined, motion):
+        ends = [self.local_optimum(current.half, candidate) or candidate]
+        travel = abs(float(wrap_angle_deg(ends[0].angle_deg - candidate.angle_deg)))
+        if travel > params.full_resolution_travel_deg:
+            # Astray at half resolution: the full-resolution climb may stay near the candidate.
+            ends.append(self.full_resolution_optimum(current.edges, candidate) or candidate)
+        rivals = [(structure_correlation(*self._reference, *current.edges, end)[0], end)
+                  for end in ends if self._beyond_offset(end, motion)]
+        if not rivals:
             return None
-        correlation, _ = structure_correlation(*self._reference, *current.edges, refined)
+        correlation, refined = max(rivals, key=lambda rival: rival[0])
         margin = params.outside_margin if beyond else params.candidate_margin
         return (refined, correlation) if correlation > optimum_correlation - margin else None
 

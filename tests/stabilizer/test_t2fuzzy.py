@@ -199,15 +199,21 @@ def test_same_input_gives_identical_results():
 
 def test_round_objects_only_give_no_rotation_estimate():
     """No ellipse orients a disc: the paper's stages have no rotation estimate; ``t2fuzzy``
-    searches from rotation 0 (``search_without_estimates``), where the frames line up."""
+    searches from rotation 0 (``search_without_estimates``), where the frames line up. Nor does
+    anything else fix the rotation of a lone disc: turned about its own centre it looks the
+    same, so the trust check finds a turn of about 13 degrees (with the matching shift) that
+    lines the frames up as well, and reports the estimate as ambiguous."""
     image = np.full((144, 144), 40, np.uint8)
     cv2.circle(image, (72, 72), 30, 160, -1)
     current = apply_motion(image, Motion(0.0, 3.0, 2.0))
     paper = stabilizer.estimate(image, current, method="t2fuzzy_paper")
     assert paper.status == NO_ROTATION and np.isnan(paper.dx)
-    searched = stabilizer.estimate(image, current)
+    searched = stabilizer.estimate(image, current, verification=None)
     assert searched.ok and searched.diagnostics["object_angles"].size == 0
     np.testing.assert_allclose(searched.as_tuple(), (0.0, 3.0, 2.0), atol=0.5)
+    checked = stabilizer.estimate(image, current)
+    assert checked.status == "unverified" and checked.diagnostics["verify_failed"] == "ambiguous"
+    assert abs(checked.diagnostics["verify_candidate"][0]) > 5.0
     unsearched = stabilizer.estimate(image, current,
                                      refinements=Refinements(search_without_estimates=False))
     assert unsearched.status == NO_ROTATION

@@ -334,9 +334,29 @@ def test_an_optimum_the_half_resolution_climb_stops_short_of_is_found_at_full_re
     checked = Verifier(reference)(current, Motion(*wrong))
     assert checked.diagnostics["verify_failed"] == "not_optimum"
     assert checked.diagnostics["verify_offset_deg"] > VerificationParams().max_offset_deg
-    half_only = VerificationParams(full_resolution_offset_deg=math.inf)
+    half_only = VerificationParams(full_resolution_offset_deg=math.inf,
+                                   full_resolution_travel_deg=math.inf)
     assert Verifier(reference, half_only)(current, Motion(*wrong)).ok
     assert Verifier(reference)(current, Motion(*truth)).ok
+
+
+def test_a_candidate_whose_half_resolution_climb_goes_astray_is_climbed_at_full_resolution():
+    """A known motion of -9.0 degrees that `sift` returned as -1.7 (benchmarks/trust_properties.py,
+    seed 221): the grid's candidate, -10 degrees, climbs at half resolution to -4.2 degrees,
+    within the estimate's offset limits, so the search found no rival; climbed at full
+    resolution it stays at the truth, lines the edges up better than the estimate's optimum, and
+    fails the estimate as ambiguous."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(830496515, (129, 163),
+                                                               n_objects=2, floor=True))
+    truth, wrong = Motion(-9.02, -7.41, 12.42), Motion(-1.71, -5.65, 11.21)
+    current = apply_motion(reference, truth)
+    checked = Verifier(reference)(current, wrong)
+    assert checked.diagnostics["verify_failed"] == "ambiguous"
+    rival = Motion(*checked.diagnostics["verify_candidate"])
+    assert abs(rival.angle_deg - truth.angle_deg) < 0.5
+    assert math.hypot(rival.dx - truth.dx, rival.dy - truth.dy) < 1.0
+    half_only = VerificationParams(full_resolution_travel_deg=math.inf)
+    assert Verifier(reference, half_only)(current, wrong).ok
 
 
 def test_a_search_that_agrees_with_the_optimum_is_not_climbed_again():
@@ -471,6 +491,7 @@ def test_thresholds_are_parameters():
                                  dict(clip_factor=0.0), dict(max_offset_deg=-1.0),
                                  dict(still_px=-0.5), dict(optimum_iterations=0),
                                  dict(full_resolution_offset_deg=-1.0),
+                                 dict(full_resolution_travel_deg=-1.0),
                                  dict(depth_tolerance_levels=-1.0),
                                  dict(depth_tolerance_noise=-1.0),
                                  dict(max_depth_disagreement=1.5),
