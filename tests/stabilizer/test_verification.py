@@ -434,15 +434,20 @@ def test_unrelated_scenes_on_one_floor_lined_up_sideways_disagree_in_depth(seeds
     assert Verifier(reference, WITHOUT_DEPTH)(current, sideways).ok
 
 
+def disagreement(reference: np.ndarray, current: np.ndarray, motion: Motion,
+                 noise: float = VerificationParams().depth_tolerance_noise) -> float:
+    """:func:`depth_disagreement` with the default tolerances (and ``noise`` sigmas)."""
+    params = VerificationParams()
+    return depth_disagreement(reference, disparity_range(reference), current, motion,
+                              params.depth_tolerance_levels, params.depth_tolerance_share, noise)
+
+
 def test_depth_disagreement_is_near_zero_at_the_truth_and_large_off_it():
-    reference_range = disparity_range(REFERENCE)
-    at_truth = depth_disagreement(REFERENCE, reference_range, CURRENT, TRUTH, 4.0, 0.2, 2.0)
-    off = Motion(TRUTH.angle_deg, TRUTH.dx + 15.0, TRUTH.dy)
-    assert at_truth < 0.02
-    assert depth_disagreement(REFERENCE, reference_range, CURRENT, off, 4.0, 0.2, 2.0) > 0.1
+    assert disagreement(REFERENCE, CURRENT, TRUTH) < 0.02
+    assert disagreement(REFERENCE, CURRENT, Motion(TRUTH.angle_deg, TRUTH.dx + 15.0,
+                                                   TRUTH.dy)) > 0.1
     # No pixel measured in both: nothing agrees.
-    empty = np.zeros_like(CURRENT)
-    assert depth_disagreement(REFERENCE, reference_range, empty, TRUTH, 4.0, 0.2, 2.0) == 1.0
+    assert disagreement(REFERENCE, np.zeros_like(CURRENT), TRUTH) == 1.0
 
 
 def test_the_depth_tolerance_grows_with_the_current_frames_noise():
@@ -452,10 +457,8 @@ def test_the_depth_tolerance_grows_with_the_current_frames_noise():
     reference, current = noisy(REFERENCE, rng, 16.0), noisy(CURRENT, rng, 16.0)
     assert noise_level(CURRENT) == 0.0
     assert 12.0 < noise_level(current) < 20.0
-    reference_range = disparity_range(reference)
-    without = depth_disagreement(reference, reference_range, current, TRUTH, 4.0, 0.2, 0.0)
-    assert without > 0.05
-    assert depth_disagreement(reference, reference_range, current, TRUTH, 4.0, 0.2, 2.0) < 0.02
+    assert disagreement(reference, current, TRUTH, noise=0.0) > 0.05
+    assert disagreement(reference, current, TRUTH) < 0.02
 
 
 def test_an_estimate_two_pixels_off_on_noisy_frames_is_judged_at_the_optimum():
