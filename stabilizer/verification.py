@@ -293,7 +293,10 @@ def noise_level(image: np.ndarray) -> float:
     """A robust standard deviation of ``image``'s noise (uint8, 0 = invalid), in gray levels:
     1.4826 times the median absolute difference from the 3 x 3 median, over the pixels whose
     3 x 3 neighbourhood is measured; 0 when there are none. Smooth surfaces and depth steps
-    leave the median as it is, noise does not."""
+    leave the median as it is, noise does not. (The pixel noise of
+    :func:`stabilizer.peers.preparation.robust_value_range`, from the differences of horizontal
+    neighbours, counts the one-level steps of a quantised ramp as noise: about 1 gray level on
+    every noise-free walking frame, where this gives 0.)"""
     valid = (image > 0).view(np.uint8)
     inner = cv2.erode(valid, np.ones((3, 3), np.uint8), borderValue=0)
     residuals = cv2.absdiff(image, cv2.medianBlur(image, 3))
@@ -313,16 +316,16 @@ def noise_level(image: np.ndarray) -> float:
 
 def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray, np.ndarray],
                        current: np.ndarray, motion: Motion, tolerance_levels: float,
-                       tolerance_share: float, tolerance_noise: float) -> float:
+                       tolerance_share: float, noise_allowance: float) -> float:
     """Share of the pixels measured in both frames where the compensated current frame
     disagrees in depth with the reference.
 
     The current frame is compensated by ``motion`` (the inverse warp, nearest neighbour, so
     that no disparity is invented between a near and a far surface) and a pixel disagrees when
     its disparity d lies more than max(``tolerance_levels``, ``tolerance_share`` d) +
-    ``tolerance_noise`` sigma below the smallest or above the largest of the reference's within
-    one pixel (:func:`disparity_range`), sigma being the current frame's :func:`noise_level`:
-    a misalignment of a pixel at a depth step, a surface the camera's translation brought a
+    ``noise_allowance`` below the smallest or above the largest of the reference's within one
+    pixel (:func:`disparity_range`), the allowance being a multiple of the current frame's
+    :func:`noise_level`: a misalignment of a pixel at a depth step, a surface the camera's translation brought a
     fifth closer, or the current pixel's own noise (the reference's is within its range) still
     agrees. Two views of one rigid scene agree almost everywhere once lined up; two scenes that
     only share a floor disagree wherever one has an object and the other does not, even where
@@ -338,9 +341,9 @@ def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray,
         Disparity-like current frame, 0 = invalid.
     motion : Motion
         The estimate (docs/design.md convention).
-    tolerance_levels, tolerance_share, tolerance_noise : float
-        The tolerance: gray levels, a share of the current pixel's disparity, and multiples of
-        the current frame's noise.
+    tolerance_levels, tolerance_share, noise_allowance : float
+        The tolerance: gray levels, a share of the current pixel's disparity, and gray levels
+        for the current frame's noise.
 
     Returns
     -------
@@ -359,7 +362,7 @@ def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray,
     # low - d > floor(t) (and d > high + t when d - high > floor(t)), so uint8 arithmetic
     # (cv2.subtract saturates at 0) decides as the float comparison would.
     tolerance = (np.maximum(np.float32(tolerance_levels), np.float32(tolerance_share) * _LEVELS)
-                 + np.float32(tolerance_noise * noise_level(current)))
+                 + np.float32(noise_allowance))
     allowed = cv2.LUT(compensated, np.minimum(np.floor(tolerance), 255).astype(np.uint8))
     low, high = reference_range
     disagree = ((cv2.subtract(low, compensated) > allowed)
@@ -524,7 +527,8 @@ class Verifier:
         :meth:`check` (one set serves the checks of several estimates of one frame)."""
         edges = edge_image(current, self.params.sigma_px, self.params.clip_factor)
         null_correlation, _ = structure_correlation(*self._reference, *edges)
-        return CurrentEdges(current, edges, _half_resolution(*edges), null_correlation)
+        return CurrentEdges(current, noise_level(current), edges, _half_resolution(*edges),
+                            null_correlation)
 
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
         """:meth:`check` of ``motion`` on the :meth:`measure` of ``current``."""
@@ -567,7 +571,7 @@ class Verifier:
                                           current.disparity, motion,
                                           params.depth_tolerance_levels,
                                           params.depth_tolerance_share,
-                                          params.depth_tolerance_noise)
+                                          params.depth_tolerance_noise * current.noise)
         diagnostics = dict(motion.diagnostics, verify_correlation=correlation,
                            verify_overlap=overlap, verify_null_correlation=null_correlation,
                            verify_optimum=optimum.as_tuple(),
@@ -739,6 +743,7 @@ class CurrentEdges:
 
     Attributes:
         disparity: the frame itself (uint8, 0 = invalid), for :func:`depth_disagreement`.
+        noise: its :func:`noise_level`.
         edges: the frame's :func:`edge_image` (response, measured mask).
         half: the same at half resolution.
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
@@ -747,6 +752,7 @@ class CurrentEdges:
     """
 
     disparity: np.ndarray
+    noise: float
     edges: tuple[np.ndarray, np.ndarray]
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float

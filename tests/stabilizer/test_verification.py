@@ -436,10 +436,12 @@ def test_unrelated_scenes_on_one_floor_lined_up_sideways_disagree_in_depth(seeds
 
 def disagreement(reference: np.ndarray, current: np.ndarray, motion: Motion,
                  noise: float = VerificationParams().depth_tolerance_noise) -> float:
-    """:func:`depth_disagreement` with the default tolerances (and ``noise`` sigmas)."""
+    """:func:`depth_disagreement` with the default tolerances (and ``noise`` sigmas of the current
+    frame's :func:`noise_level`)."""
     params = VerificationParams()
     return depth_disagreement(reference, disparity_range(reference), current, motion,
-                              params.depth_tolerance_levels, params.depth_tolerance_share, noise)
+                              params.depth_tolerance_levels, params.depth_tolerance_share,
+                              noise * noise_level(current))
 
 
 def test_depth_disagreement_is_near_zero_at_the_truth_and_large_off_it():
