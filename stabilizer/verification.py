@@ -69,6 +69,13 @@ class VerificationParams:
             check failed a third of those walking frames (docs/method.md, section 11).
         still_deg, still_px: on frames that did not move, the largest angle and translation an
             ``"ok"`` estimate may have. Defaults 1 degree and 1 px.
+        moved_depth_share: the frames moved, whatever their edges say, when the uncompensated
+            current frame disagrees in depth (:func:`depth_disagreement`) on at least this share
+            more of the pixels both frames measure than the frame compensated by the estimate.
+            Default 0.01: down a corridor, the far door's edges stay put while the near walls
+            and floor move by 10-15 px; the edges then called accurate walking estimates
+            invented motions (docs/method.md, section 11, "Still edges, moved depth"). 1: the
+            edges alone decide.
         sigma_px: Gaussian scale (pixels) of the edge image; it sets the misalignment the check
             tolerates, about a pixel or two. Default 2.
         clip_factor: edge responses (the Laplacian of the smoothed disparity) are clipped to
@@ -131,6 +138,7 @@ class VerificationParams:
     null_margin: float = 0.01
     still_deg: float = 1.0
     still_px: float = 1.0
+    moved_depth_share: float = 0.01
     sigma_px: float = 2.0
     clip_factor: float = 5.0
     optimum_iterations: int = 10
@@ -168,6 +176,8 @@ class VerificationParams:
         if not self.full_resolution_offset_deg >= 0:
             raise ValueError(f"full_resolution_offset_deg must be >= 0 (math.inf: never); got "
                              f"{self.full_resolution_offset_deg}")
+        if not 0.0 <= self.moved_depth_share <= 1.0:
+            raise ValueError(f"moved_depth_share must be in [0, 1]; got {self.moved_depth_share}")
         if min(self.depth_tolerance_levels, self.depth_tolerance_share,
                self.depth_tolerance_noise) < 0 or not 0.0 <= self.max_depth_disagreement <= 1.0:
             raise ValueError(f"depth_tolerance_levels, depth_tolerance_share and "
@@ -399,9 +409,10 @@ class Verifier:
        over the grid of angles (:meth:`candidate`, climbed to its own optimum;
        :meth:`_rival_candidate`): the estimate is not on a false peak, nor on one of two peaks
        the check cannot tell apart;
-    6. when the uncompensated frame scores within ``null_margin`` of the optimum (the frames did
-       not move, as far as the check can tell), the estimate moves by at most ``still_deg`` and
-       ``still_px``: no invented motion.
+    6. when the uncompensated frame scores within ``null_margin`` of the optimum and agrees in
+       depth about as well as the compensated one (less than ``moved_depth_share`` more of the
+       pixels disagree: the frames did not move, as far as the check can tell), the estimate
+       moves by at most ``still_deg`` and ``still_px``: no invented motion.
 
     Judging the correlation at the optimum rather than at the estimate makes the check fair to
     estimates a pixel or two off on noisy frames, whose own correlation drops steeply with the
@@ -539,7 +550,8 @@ class Verifier:
         ``verify_correlation``, ``verify_overlap``, ``verify_null_correlation`` (the
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
-        optimum), ``verify_depth_disagreement``; otherwise a failed Motion with the status
+        optimum), ``verify_depth_disagreement``, and ``verify_null_depth_disagreement`` (the
+        uncompensated frame's) where test 6 needed it; otherwise a failed Motion with the status
         ``"unverified"``, the same diagnostics, ``verify_failed`` (``"overlap"``,
         ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"ambiguous"`` or ``"no_motion"``:
         the first test failed; a turn beyond the searched angles without a convincing optimum
@@ -567,11 +579,7 @@ class Verifier:
                                                            optimum)
         offset_deg = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
         offset_px = math.hypot(optimum.dx - motion.dx, optimum.dy - motion.dy)
-        disagreement = depth_disagreement(self._reference_disparity, self._reference_range,
-                                          current.disparity, motion,
-                                          params.depth_tolerance_levels,
-                                          params.depth_tolerance_share,
-                                          params.depth_tolerance_noise * current.noise)
+        disagreement = self._depth_disagreement(current, motion)
         diagnostics = dict(motion.diagnostics, verify_correlation=correlation,
                            verify_overlap=overlap, verify_null_correlation=null_correlation,
                            verify_optimum=optimum.as_tuple(),
@@ -607,11 +615,23 @@ class Verifier:
         if failed is None and (abs(motion.angle_deg) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = null_correlation >= optimum_correlation - params.null_margin
+            if still:  # the edges stayed put; the depth may say the frames moved all the same
+                null_disagreement = self._depth_disagreement(current, Motion(0.0, 0.0, 0.0))
+                diagnostics["verify_null_depth_disagreement"] = null_disagreement
+                still = null_disagreement < disagreement + params.moved_depth_share
             failed = "no_motion" if still else None
         if failed is not None:
             return Motion.failed(UNVERIFIED, verify_failed=failed,
                                  unverified_motion=motion.as_tuple(), **diagnostics)
         return Motion(motion.angle_deg, motion.dx, motion.dy, diagnostics=diagnostics)
+
+    def _depth_disagreement(self, current: CurrentEdges, motion: Motion) -> float:
+        """:func:`depth_disagreement` of ``current`` compensated by ``motion``."""
+        params = self.params
+        return depth_disagreement(self._reference_disparity, self._reference_range,
+                                  current.disparity, motion, params.depth_tolerance_levels,
+                                  params.depth_tolerance_share,
+                                  params.depth_tolerance_noise * current.noise)
 
     def shift_rival(self, current_half: tuple[np.ndarray, np.ndarray],
                     motion: Motion) -> ShiftRival | None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -81,6 +82,30 @@ def test_a_motion_invented_on_frames_that_did_not_move_fails():
 def test_a_tiny_motion_on_frames_that_did_not_move_passes():
     checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(0.5, 0.5, -0.5))
     assert checked.ok
+
+
+def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
+    """Down a corridor the far door's depth edges hardly move while the near walls and floor
+    move by 10-15 px: the uncompensated frame lines the edges up as well as the truth does, but
+    disagrees in depth on a fifth of the pixels. Frames 31 (the reference) and 68 of the
+    corridor walk `python benchmarks/t2fuzzy_failures.py record` makes with the default gait
+    and tuning scene seed 2003; the truth is the recorded one."""
+    data = Path(__file__).parent / "data"
+    reference, current = (cv2.imread(str(data / f"corridor_2003_frame{index:03d}.png"),
+                                     cv2.IMREAD_UNCHANGED) for index in (31, 68))
+    truth = Motion(1.2659547710090397, 11.757387012140912, -10.569362345927729)
+    params = VerificationParams()
+    checked = Verifier(reference, params)(current, truth)
+    assert checked.ok, checked.diagnostics
+    measured = checked.diagnostics
+    # The edges alone would call the frames still ...
+    assert (measured["verify_null_correlation"]
+            >= measured["verify_optimum_correlation"] - params.null_margin)
+    # ... their depths say they moved.
+    assert measured["verify_null_depth_disagreement"] > 0.2
+    assert measured["verify_depth_disagreement"] < 0.01
+    edges_alone = Verifier(reference, replace(params, moved_depth_share=1.0))(current, truth)
+    assert edges_alone.diagnostics["verify_failed"] == "no_motion"
 
 
 def test_an_estimate_away_from_the_optimum_fails():
@@ -500,6 +525,7 @@ def test_thresholds_are_parameters():
                                  dict(depth_tolerance_levels=-1.0),
                                  dict(depth_tolerance_noise=-1.0),
                                  dict(max_depth_disagreement=1.5),
+                                 dict(moved_depth_share=-0.1), dict(moved_depth_share=1.5),
                                  dict(candidate_angles_deg=())])
 def test_bad_thresholds_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
