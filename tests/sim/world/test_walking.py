@@ -283,7 +283,7 @@ def test_following_the_measured_floor_walks_where_the_level_plan_fell(
         gait, slope_direction_deg, seed):
     # The two walks of benchmarks/floor_walks.py that fell with the level plan on the machine
     # of docs/walking.md (across the slope at 13.8 s, uphill at 11.4 s). Whether and when the
-    # level plan falls that late is chaotic and differs between CPUs (on another machine the
+    # level plan falls that late is chaotic and differs between machines (on another one the
     # first walked 13 s without a fall), so the comparison is the benchmark's, not this test's.
     sim = floor_walk(gait, slope_direction_deg, seed, 20.0)
     assert sim.fall is None, sim.fall
