@@ -335,11 +335,11 @@ def depth_disagreement(reference: np.ndarray, reference_range: tuple[np.ndarray,
     its disparity d lies more than max(``tolerance_levels``, ``tolerance_share`` d) +
     ``noise_allowance`` below the smallest or above the largest of the reference's within one
     pixel (:func:`disparity_range`), the allowance being a multiple of the current frame's
-    :func:`noise_level`: a misalignment of a pixel at a depth step, a surface the camera's translation brought a
-    fifth closer, or the current pixel's own noise (the reference's is within its range) still
-    agrees. Two views of one rigid scene agree almost everywhere once lined up; two scenes that
-    only share a floor disagree wherever one has an object and the other does not, even where
-    the edges of their objects line up.
+    :func:`noise_level`: a misalignment of a pixel at a depth step, a surface the camera's
+    translation brought a fifth closer, or the current pixel's own noise (the reference's is
+    within its range) still agrees. Two views of one rigid scene agree almost everywhere once
+    lined up; two scenes that only share a floor disagree wherever one has an object and the
+    other does not, even where the edges of their objects line up.
 
     Parameters
     ----------
@@ -616,9 +616,11 @@ class Verifier:
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = null_correlation >= optimum_correlation - params.null_margin
             if still:  # the edges stayed put; the depth may say the frames moved all the same
-                null_disagreement = self._depth_disagreement(current, Motion(0.0, 0.0, 0.0))
-                diagnostics["verify_null_depth_disagreement"] = null_disagreement
-                still = null_disagreement < disagreement + params.moved_depth_share
+                if current.null_disagreement is None:
+                    current.null_disagreement = self._depth_disagreement(
+                        current, Motion(0.0, 0.0, 0.0))
+                diagnostics["verify_null_depth_disagreement"] = current.null_disagreement
+                still = current.null_disagreement < disagreement + params.moved_depth_share
             failed = "no_motion" if still else None
         if failed is not None:
             return Motion.failed(UNVERIFIED, verify_failed=failed,
@@ -769,6 +771,8 @@ class CurrentEdges:
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
         candidate: the best motion of the search over the grid of angles
             (:meth:`Verifier.candidate`), once a check has needed it; None before.
+        null_disagreement: the :func:`depth_disagreement` of the uncompensated frame, once a
+            check has needed it (test 6); None before.
     """
 
     disparity: np.ndarray
@@ -777,6 +781,7 @@ class CurrentEdges:
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
     candidate: Motion | None = None
+    null_disagreement: float | None = None
 
 
 class ShiftRival(NamedTuple):
