@@ -8,6 +8,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
+    python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
@@ -185,6 +186,20 @@ def second_look_time(folders: list[Path], stride: int) -> None:
     looked = sum("second_look_from" in m.diagnostics or "second_look" in m.diagnostics
                  for m in motions)
     print(f"second looks: {looked} of {len(motions)} frames")
+
+
+def astray_climb_time(folders: list[Path], stride: int) -> None:
+    """Process CPU ms per frame of ``t2fuzzy`` through the trust check with its recovery of
+    astray climbs and without it (``astray_climb_recovery=False``), the two alternating frame
+    by frame, and on how many frames the recovery ran (docs/method.md, section 12)."""
+    from stabilizer.t2fuzzy_refinements import Refinements
+    from stabilizer.verification import VerificationParams
+
+    motions = _alternating_times(folders, stride, VerificationParams(), {
+        "recovery": Refinements(),
+        "no recovery": Refinements(astray_climb_recovery=False)})["recovery"]
+    recovered = sum("astray_climb" in m.diagnostics for m in motions)
+    print(f"astray climbs recovered: {recovered} of {len(motions)} frames")
 
 
 def _alternating_times(folders: list[Path], stride: int, verification,
@@ -431,6 +446,10 @@ def main(argv: list[str] | None = None) -> int:
     looked = commands.add_parser("second-look", help="t2fuzzy's time with its second look")
     looked.add_argument("folders", type=Path, nargs="+")
     looked.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    recovering = commands.add_parser("astray-climb",
+                                     help="t2fuzzy's time with its recovery of astray climbs")
+    recovering.add_argument("folders", type=Path, nargs="+")
+    recovering.add_argument("--stride", type=int, default=4, help="time every n-th frame")
     swept = commands.add_parser("margins", help="a margin of the check, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
@@ -459,6 +478,8 @@ def main(argv: list[str] | None = None) -> int:
         overlap_climb_time(_sequences(args.folders), args.stride)
     elif args.command == "second-look":
         second_look_time(_sequences(args.folders), args.stride)
+    elif args.command == "astray-climb":
+        astray_climb_time(_sequences(args.folders), args.stride)
     elif args.command == "margins":
         margins(_sequences(args.folders), args.methods, args.stride, args.values, args.param)
     elif args.command == "stage6":

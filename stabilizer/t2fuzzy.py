@@ -50,8 +50,9 @@ label, subband index) per estimate; subband names in ``subbands``), ``thresholds
 upper), ``inliers`` (mask over ``object_angles``), ``threshold_fallback`` (None or
 ``"median"``), ``rotation_by_thresholds`` (the rotation of stage 5, before any rotation
 search), ``ncc_peak``, ``ncc_at_border``, with the rotation search ``search_converged`` and
-``wide_shift`` (the wide search's best (dx, dy), None when it did not run), ``refine_passes``
-(common-disc passes run; 0: the
+``wide_shift`` (the wide search's best (dx, dy), None when it did not run), ``astray_climb``
+(only when the search's climb went astray and was replaced: the (angle, dx, dy) it ended at;
+refinement ``astray_climb_recovery``), ``refine_passes`` (common-disc passes run; 0: the
 whole frames), ``ellipses`` (the current frame's fitted ellipses, on the common disc after a
 disc pass, as (cx, cy, half_major, half_minor, angle_deg) in image pixels, the angle of the
 major axis from +x toward +y), ``fcm_iterations`` and ``fcm_converged``. Keys not reached before
@@ -537,6 +538,8 @@ class T2FuzzyEstimator:
             angle, match, converged = self.rotation_search(angles, start, image, near, valid)
             diagnostics.update(search_converged=converged,
                                wide_shift=self.rotation_search.wide_shift)
+            if self.rotation_search.astray_climb is not None:
+                diagnostics["astray_climb"] = self.rotation_search.astray_climb
         else:
             angle, match = robust.value, self._translation(robust.value, image, near)
             converged = True

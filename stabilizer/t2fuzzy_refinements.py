@@ -23,7 +23,10 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   central template of stage 6 sees neither the structures near the border nor shifts beyond its
   margin. Its shift is where the finer search starts; a shift beyond the central template's
   reach is climbed over rotations on the whole overlap instead, at half and then at full
-  resolution (:meth:`RotationSearch.climb_on_overlap`).
+  resolution (:meth:`RotationSearch.climb_on_overlap`). So is the wide search's best motion
+  when the finer search's climb went astray (``astray_climb_recovery``): when the central
+  template finds no peak near the shift the climb reached, and the whole overlap correlates
+  lower at the climb's rotation than at the wide search's best candidate.
 - Search without ellipse estimates (``search_without_estimates``): a frame whose ellipses give
   no rotation estimate is searched from rotation 0 rather than failed.
 - Resolving a disagreement (``resolve_disagreement``): when the central template's shift and
@@ -180,6 +183,12 @@ class Refinements:
             (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). The climb then runs
             only where the check doubts the estimate. ``math.inf``: off. Default 1 degree
             (docs/method.md, section 12, "A second look").
+        astray_climb_recovery: with the wide search, when the central template finds no peak
+            near the shift that the half-resolution climb reached, and the whole overlap
+            correlates lower at the climb's rotation than at the wide search's best candidate,
+            the climb is taken to have gone astray: the wide search's best motion is climbed on
+            the whole overlap instead, as a shift beyond the template's reach is. Default True
+            (docs/method.md, section 12, "Astray climbs of the search").
     """
 
     rotation_search: bool = True
@@ -203,6 +212,7 @@ class Refinements:
     clip_min_spread: float = 20.0
     final_overlap_climb: bool = False
     doubtful_offset_deg: float = 1.0
+    astray_climb_recovery: bool = True
 
     def __post_init__(self):
         if not self.search_step_deg > 0:
@@ -235,7 +245,7 @@ class Refinements:
                    wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
                    max_shift_disagreement_px=0.0, large_template_border_px=0,
                    resolve_disagreement=False, clip_sigmas=0.0,
-                   doubtful_offset_deg=math.inf)
+                   doubtful_offset_deg=math.inf, astray_climb_recovery=False)
 
     @property
     def needs_coarse_template(self) -> bool:
@@ -428,7 +438,7 @@ class RotationSearch:
         coarse_template: the same at half resolution (:func:`half_resolution_template`).
         refinements: ``search_step_deg``, ``search_max_steps``, ``search_candidates``,
             ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``,
-            ``resolve_margin`` and ``edge_tie_margin``.
+            ``resolve_margin``, ``edge_tie_margin`` and ``astray_climb_recovery``.
         wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
         reference: the reference frame itself, whose depth edges settle a disagreement that
             the FNCC cannot (``edge_tie_margin``); None: they never do.
@@ -451,6 +461,10 @@ class RotationSearch:
         self.wide_shift: tuple[float, float] | None = None
         #: The candidate rotation at which the wide search found ``wide_shift``.
         self.wide_angle: float | None = None
+        self.astray_climb_recovery = bool(refinements.astray_climb_recovery)
+        #: The end (angle, dx, dy) of the finer search's climb in the last call when it went
+        #: astray and was replaced (``astray_climb_recovery``), else None.
+        self.astray_climb: tuple[float, float, float] | None = None
         self.shift_tolerance = float(refinements.max_shift_disagreement_px) / 2.0
         self.resolve_margin = float(refinements.resolve_margin)
         self.edge_tie_margin = float(refinements.edge_tie_margin)
@@ -494,30 +508,24 @@ class RotationSearch:
             if abs(mean) <= self.max_rotation and all(abs(mean - c) > self.step
                                                       for c in candidates):
                 candidates.append(mean)
-        self.wide_shift = self.wide_angle = None
+        self.wide_shift = self.wide_angle = self.astray_climb = None
         if self.wide is not None and near is None and valid is not None:
             spectra = self.wide.spectra(half, half_resolution_valid(valid))
             wide = [self.wide.match(spectra, angle) for angle in candidates]
-            heights = [m.height if np.isfinite(m.height) else -np.inf for m in wide]
-            best = int(np.argmax(heights))
-            self.wide_shift = (wide[best].x, wide[best].y)
-            self.wide_angle = candidates[best]
-            if not np.isfinite(heights[best]):
-                return candidates[best], wide[best], False
+            wide_heights = [m.height if np.isfinite(m.height) else -np.inf for m in wide]
+            widest = int(np.argmax(wide_heights))
+            self.wide_shift = (wide[widest].x, wide[widest].y)
+            self.wide_angle = candidates[widest]
+            if not np.isfinite(wide_heights[widest]):
+                return candidates[widest], wide[widest], False
             reach = self.template.margin - FINE_RADIUS_PX
-            if max(abs(wide[best].x), abs(wide[best].y)) > reach:
-                # Beyond the central template's reach: climb on the whole overlap, at half
-                # resolution and then, like every other path, at full resolution.
-                angle, top, converged = self._climb(self.wide, spectra, candidates[best],
-                                                    wide[best])
-                if converged and np.isfinite(top.height):
-                    climbed = self.climb_on_overlap(angle, (top.x, top.y), image, valid)
-                    if climbed is not None:
-                        angle, top = climbed
-                return angle, top, converged
+            if max(abs(wide[widest].x), abs(wide[widest].y)) > reach:
+                # Beyond the central template's reach: climb on the whole overlap instead.
+                return self._climb_whole_overlap(spectra, candidates[widest], wide[widest],
+                                                 image, valid)
             # Every candidate near the wide search's shift, and only there.
-            coarse = [self.coarse_template.match(half, angle, (wide[best].x / 2.0,
-                                                                wide[best].y / 2.0))
+            coarse = [self.coarse_template.match(half, angle, (wide[widest].x / 2.0,
+                                                                wide[widest].y / 2.0))
                       for angle in candidates]
         else:
             spectra = None
@@ -539,7 +547,14 @@ class RotationSearch:
         centre = self.template.match(image, angle, near)
         if centre.at_border:  # the coarse shift was off
             if spectra is not None:  # the shift of the whole overlap at this rotation
-                return angle, self.wide.match(spectra, angle), converged
+                found = self.wide.match(spectra, angle)
+                if self.astray_climb_recovery and not found.height >= wide_heights[widest]:
+                    # The climb left the wide search's shift for a worse motion of the whole
+                    # overlap: start again from the wide search's best, on the whole overlap.
+                    self.astray_climb = (angle, found.x, found.y)
+                    return self._climb_whole_overlap(spectra, candidates[widest], wide[widest],
+                                                     image, valid)
+                return angle, found, converged
             centre = self.template.match(image, angle)  # search the whole range once
         if self.large_border > 0:
             refined = self.refine_on_large_template(half, image, angle, centre)
@@ -547,6 +562,19 @@ class RotationSearch:
                 return (*refined, converged)
         angle, match, fine_converged = self._climb(self.template, image, angle, centre)
         return angle, match, converged and fine_converged
+
+    def _climb_whole_overlap(self, spectra: MaskedSpectra, angle: float, start: TemplateMatch,
+                             image: np.ndarray, valid: np.ndarray
+                             ) -> tuple[float, TemplateMatch, bool]:
+        """The wide search's match ``start`` at ``angle`` climbed over rotation on the whole
+        overlap, at half resolution and then, like every other path, at full resolution
+        (:meth:`climb_on_overlap`); the rotation, the match and whether the climb converged."""
+        angle, top, converged = self._climb(self.wide, spectra, angle, start)
+        if converged and np.isfinite(top.height):
+            climbed = self.climb_on_overlap(angle, (top.x, top.y), image, valid)
+            if climbed is not None:
+                angle, top = climbed
+        return angle, top, converged
 
     def resolve_disagreement(self, angle: float, match: TemplateMatch, image: np.ndarray,
                              current: np.ndarray) -> tuple[float, TemplateMatch] | None:
