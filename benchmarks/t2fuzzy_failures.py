@@ -9,7 +9,9 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
+    python benchmarks/t2fuzzy_failures.py check-time /tmp/t2f/seq/* --param NAME --values A B
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
+    python benchmarks/t2fuzzy_failures.py flow-tiles /tmp/t2f/seq/off_pa_2009 272   # non-rigid
     python benchmarks/t2fuzzy_failures.py figures /tmp/t2f/seq --out docs/figures
 
 ``record`` walks the four shipped scenes (corridor, lab, office, hall) with both gaits on the
@@ -202,6 +204,51 @@ def astray_climb_time(folders: list[Path], stride: int) -> None:
     print(f"astray climbs recovered: {recovered} of {len(motions)} frames")
 
 
+def check_time(folders: list[Path], stride: int, param: str, values: list[float]) -> None:
+    """Process CPU ms per check of the trust check with each value of ``param`` (a field of
+    :class:`~stabilizer.verification.VerificationParams`), on the same ``t2fuzzy`` estimates
+    (made once without the check), the variants alternating frame by frame; and how many
+    full-resolution climbs each ran (docs/method.md, section 11, "Half a step astray")."""
+    from stabilizer.verification import VerificationParams, Verifier
+
+    seconds, climbs, checks = dict.fromkeys(values, 0.0), dict.fromkeys(values, 0), 0
+    for folder in folders:
+        frames, references, _, _ = _frames(folder)
+        motions = _estimates(frames, references, "t2fuzzy", False, stride)[0]
+        current, verifiers = None, {}
+        for index, motion in zip(range(0, len(frames), stride), motions):
+            if references[index] != current:
+                current = references[index]
+                verifiers = {value: Verifier(frames[current],
+                                             VerificationParams(**{param: value}))
+                             for value in values}
+                for value, verifier in verifiers.items():
+                    _count_calls(verifier, "full_resolution_optimum", climbs, value)
+            if not motion.ok:
+                continue
+            checks += 1
+            for value, verifier in verifiers.items():
+                start = time.process_time()
+                verifier(frames[index], motion)
+                seconds[value] += time.process_time() - start
+    load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
+    for value in values:
+        print(f"{param} {value}: {1e3 * seconds[value] / checks:.3f} ms per check (CPU), "
+              f"{climbs[value]} full-resolution climbs, {checks} checks")
+    print(f"load average {load}")
+
+
+def _count_calls(instance, name: str, counts: dict, key) -> None:
+    """Wraps ``instance``'s method ``name`` so that each call adds 1 to ``counts[key]``."""
+    method = getattr(instance, name)
+
+    def counted(*args, **kwargs):
+        counts[key] += 1
+        return method(*args, **kwargs)
+
+    setattr(instance, name, counted)
+
+
 def _alternating_times(folders: list[Path], stride: int, verification,
                        variants: dict) -> dict[str, list]:
     """Prints the process CPU ms per frame of ``t2fuzzy`` with each of ``variants`` (name ->
@@ -335,6 +382,91 @@ def stage6(folders: list[Path]) -> None:
               f"| {100 * np.mean(off['whole']):.1f}% |", flush=True)
 
 
+def flow_tiles(folder: Path, index: int, methods: list[str], grid: int = 3) -> None:
+    """How far the true image motion of one frame is from rigid: the ground truth's rigid fit
+    and its residual, the zoom of the least-squares similarity of the same correspondences, and
+    per tile of a ``grid`` x ``grid`` split of the reference the mean (dx, dy) by which the true
+    motion of its pixels differs from the rigid truth and from each method's estimate (through
+    the trust check); and what the trust check measures at each of those motions and where its
+    grid of angles points (docs/method.md, section 11, "What it promises, and what it cannot
+    see")."""
+    from sim.harness.runner import frame_truth
+    from sim.harness.sequence import load_sequence
+    from stabilizer import Stabilizer
+    from stabilizer.motion import transform_points
+    from stabilizer.verification import (
+        VerificationParams,
+        Verifier,
+        edge_image,
+        structure_correlation,
+    )
+
+    sequence = load_sequence(folder)
+    if not 0 <= index < sequence.n_frames:
+        raise SystemExit(f"frame {index} is not in {folder} (0-{sequence.n_frames - 1})")
+    row = sequence.rows[index]
+    reference, current = sequence.frame(row.reference_frame), sequence.frame(index)
+    truth = frame_truth(reference, current, sequence.intrinsics)
+    pairs = truth.correspondences
+    source, target = pairs.source_px.astype(np.float64), pairs.target_px.astype(np.float64)
+    # Every correspondence an inlier: the least-squares similarity, refined.
+    similarity, _ = cv2.estimateAffinePartial2D(source, target, method=cv2.RANSAC,
+                                                ransacReprojThreshold=1e6, refineIters=20)
+    zoom = math.hypot(similarity[0, 0], similarity[1, 0])
+    turn = math.degrees(math.atan2(similarity[0, 1], similarity[0, 0]))  # Motion's sign
+    print(f"{folder.name} frame {index} (reference {row.reference_frame}): truth "
+          f"{np.round(truth.motion.as_tuple(), 2)}, residual {truth.residual_rms_px:.2f} px RMS "
+          f"over {truth.n_points} points; the similarity fit: zoom {zoom:.3f}, rotation "
+          f"{turn:.2f} deg")
+    height, width = pairs.shape
+    tile = (np.minimum(source[:, 1] * grid // height, grid - 1) * grid
+            + np.minimum(source[:, 0] * grid // width, grid - 1)).astype(int)
+    params = VerificationParams()
+    verifier = Verifier(reference.disparity8, params)
+    edges = verifier.measure(current.disparity8)
+    candidate = verifier.candidate(edges.half)
+    climbed = verifier.local_optimum(edges.half, candidate)
+    print(f"the check's grid candidate {np.round(candidate.as_tuple(), 2)}, climbed at half "
+          f"resolution to ", end="")
+    if climbed is None:
+        print("nothing (ECC gave up)")
+    else:
+        reference_edges = edge_image(reference.disparity8, params.sigma_px, params.clip_factor)
+        correlation, _ = structure_correlation(*reference_edges, *edges.edges, climbed)
+        print(f"{np.round(climbed.as_tuple(), 2)} (edge correlation {correlation:.3f})")
+    motions = {"rigid truth": truth.motion}
+    for method in methods:
+        motions[method] = Stabilizer(reference.disparity8, method).estimate(current.disparity8)
+    for name, motion in motions.items():
+        print(f"\n{name}: {motion.status} {np.round(motion.as_tuple(), 2)}")
+        if not motion.ok:
+            continue
+        checked = verifier(current.disparity8, motion)
+        print(f"  the check: {checked.status} {checked.diagnostics.get('verify_failed', '')}, "
+              f"edge correlation {checked.diagnostics['verify_correlation']:.3f}, its optimum "
+              f"{np.round(checked.diagnostics['verify_optimum'], 2)} at "
+              f"{checked.diagnostics['verify_optimum_correlation']:.3f}; disparity difference "
+              f"{_disparity_difference(reference.disparity8, current.disparity8, motion):.2f}")
+        off = target - transform_points(motion, source, pairs.shape)
+        for row_of_tiles in range(grid):
+            cells = []
+            for column in range(grid):
+                inside = tile == row_of_tiles * grid + column
+                cells.append(f"{off[inside, 0].mean():6.1f} {off[inside, 1].mean():6.1f} "
+                             f"({np.count_nonzero(inside):4d})" if inside.any() else " " * 20)
+            print(" | ".join(cells))
+
+
+def _disparity_difference(reference: np.ndarray, current: np.ndarray, motion) -> float:
+    """Mean absolute difference (gray levels) of the reference and the current frame
+    compensated by ``motion``, where both measure."""
+    from stabilizer.motion import compensate
+
+    compensated = compensate(current, motion).astype(np.float64)
+    both = (compensated > 0) & (reference > 0)
+    return float(np.abs(compensated - reference)[both].mean())
+
+
 def _surfaces(reference, current, truth):
     """The central template's FNCC surface and the masked whole-overlap one, both at the true
     rotation and full resolution, over shifts of +-72 px."""
@@ -450,6 +582,11 @@ def main(argv: list[str] | None = None) -> int:
                                      help="t2fuzzy's time with its recovery of astray climbs")
     recovering.add_argument("folders", type=Path, nargs="+")
     recovering.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    checked = commands.add_parser("check-time", help="the trust check's time per setting")
+    checked.add_argument("folders", type=Path, nargs="+")
+    checked.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    checked.add_argument("--param", default="full_resolution_travel_deg")
+    checked.add_argument("--values", type=float, nargs="+", default=[5.0, 2.5])
     swept = commands.add_parser("margins", help="a margin of the check, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
@@ -459,9 +596,13 @@ def main(argv: list[str] | None = None) -> int:
                        default=[-0.1, -0.05, 0.03, 0.05, 0.08, 0.1])
     swept.add_argument("--param", default="candidate_margin",
                        choices=["candidate_margin", "outside_margin", "ridge_margin",
-                                "null_margin"])
+                                "null_margin", "full_resolution_travel_deg"])
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
     isolated.add_argument("folders", type=Path, nargs="+")
+    tiled = commands.add_parser("flow-tiles", help="how far one frame's true motion is from rigid")
+    tiled.add_argument("folder", type=Path)
+    tiled.add_argument("frame", type=int)
+    tiled.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
     drawer = commands.add_parser("figures", help="the failing frames of docs/method.md")
     drawer.add_argument("root", type=Path, help="the folder `record` wrote")
     drawer.add_argument("--out", type=Path, default=Path("docs/figures"))
@@ -480,8 +621,12 @@ def main(argv: list[str] | None = None) -> int:
         second_look_time(_sequences(args.folders), args.stride)
     elif args.command == "astray-climb":
         astray_climb_time(_sequences(args.folders), args.stride)
+    elif args.command == "check-time":
+        check_time(_sequences(args.folders), args.stride, args.param, args.values)
     elif args.command == "margins":
         margins(_sequences(args.folders), args.methods, args.stride, args.values, args.param)
+    elif args.command == "flow-tiles":
+        flow_tiles(args.folder, args.frame, args.methods)
     elif args.command == "stage6":
         stage6(_sequences(args.folders))
     else:

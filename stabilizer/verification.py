@@ -92,9 +92,10 @@ class VerificationParams:
         full_resolution_travel_deg: when the climb from the grid's candidate
             (:meth:`Verifier.candidate`), at half resolution, ends more than this from it, the
             candidate is climbed at full resolution too, and either end may be the rival of
-            test 5. Default 5 degrees, the grid's step: a climb that ends beyond the next angle
-            of the grid, which the search ranked below the candidate, has gone astray on the
-            coarse edges (docs/method.md, section 11, "Astray climbs"); ``math.inf``: never.
+            test 5. Default 2.5 degrees, half the grid's step: a climb that ends nearer the
+            next angle of the grid, which the search ranked below the candidate, than the
+            candidate may have gone astray on the coarse edges (docs/method.md, section 11,
+            "Astray climbs" and "Half a step astray"); ``math.inf``: never.
         convincing_correlation: an estimate that turns beyond the grid of angles (plus
             ``max_offset_deg``), where no search looks for rivals, is ambiguous when its
             optimum scores below this. Default 0.7: the median accurate walking estimate's
@@ -143,7 +144,7 @@ class VerificationParams:
     clip_factor: float = 5.0
     optimum_iterations: int = 10
     full_resolution_offset_deg: float = 1.5
-    full_resolution_travel_deg: float = 5.0
+    full_resolution_travel_deg: float = 2.5
     convincing_correlation: float = 0.7
     candidate_margin: float = 0.05
     outside_margin: float = 0.1

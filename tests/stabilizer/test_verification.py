@@ -384,6 +384,29 @@ def test_a_candidate_whose_half_resolution_climb_goes_astray_is_climbed_at_full_
     assert Verifier(reference, half_only)(current, wrong).ok
 
 
+def test_a_candidate_climb_that_ends_half_a_step_away_is_climbed_at_full_resolution():
+    """Frames 253 (the reference) and 272 of the office walk that
+    `python benchmarks/t2fuzzy_failures.py record --seeds 2009` makes with the paper-like gait:
+    the robot turns by 11.5 degrees, and `t2fuzzy` and ECC both answer about 6 degrees, where
+    the depth edges line up a little better (0.42) than at the truth's optimum (0.40). The
+    grid's candidate, 10 degrees, climbs at half resolution to 7.0 degrees, within the
+    estimate's offset limits; at full resolution it stays at 10.7 degrees, a rival within
+    ``candidate_margin``: the estimate is ambiguous. With the earlier limit of a whole grid
+    step the candidate was not climbed again and the estimate passed."""
+    data = Path(__file__).parent / "data"
+    reference, current = (cv2.imread(str(data / f"office_2009_frame{index:03d}.png"),
+                                     cv2.IMREAD_UNCHANGED) for index in (253, 272))
+    truth, estimate = (Motion(11.492632372346655, 41.104373417026004, -11.650465982096208),
+                       Motion(6.2, 37.48, -10.27))
+    checked = Verifier(reference)(current, estimate)
+    assert checked.diagnostics["verify_failed"] == "ambiguous"
+    rival = Motion(*checked.diagnostics["verify_candidate"])
+    assert abs(rival.angle_deg - truth.angle_deg) < 1.0
+    whole_step = VerificationParams(full_resolution_travel_deg=5.0)
+    assert Verifier(reference, whole_step)(current, estimate).ok
+    assert Verifier(reference)(current, truth).ok
+
+
 def test_a_search_that_agrees_with_the_optimum_is_not_climbed_again():
     """The search's motion lies within the offset limits of the optimum already found: it
     passes without a second climb. (A search
