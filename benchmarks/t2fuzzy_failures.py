@@ -386,9 +386,9 @@ def flow_tiles(folder: Path, index: int, methods: list[str], grid: int = 3) -> N
     """How far the true image motion of one frame is from rigid: the ground truth's rigid fit
     and its residual, the zoom of the least-squares similarity of the same correspondences, and
     per tile of a ``grid`` x ``grid`` split of the reference the mean (dx, dy) by which the true
-    motion of its pixels differs from the rigid truth and from each method's estimate (through
-    the trust check); and what the trust check measures at each of those motions and where its
-    grid of angles points (docs/method.md, section 11, "What it promises, and what it cannot
+    motion of its pixels differs from the rigid truth and from each method's own estimate
+    (without the trust check); and what the trust check says of each of those motions and where
+    its grid of angles points (docs/method.md, section 11, "What it promises, and what it cannot
     see")."""
     from sim.harness.runner import frame_truth
     from sim.harness.sequence import load_sequence
@@ -401,9 +401,15 @@ def flow_tiles(folder: Path, index: int, methods: list[str], grid: int = 3) -> N
         structure_correlation,
     )
 
-    sequence = load_sequence(folder)
+    try:
+        sequence = load_sequence(folder)
+    except (OSError, ValueError) as error:
+        print(error, file=sys.stderr)  # names the folder and what is accepted
+        raise SystemExit(2) from None
     if not 0 <= index < sequence.n_frames:
-        raise SystemExit(f"frame {index} is not in {folder} (0-{sequence.n_frames - 1})")
+        print(f"frame {index} is not in {folder}; accepted: 0-{sequence.n_frames - 1}",
+              file=sys.stderr)
+        raise SystemExit(2)
     row = sequence.rows[index]
     reference, current = sequence.frame(row.reference_frame), sequence.frame(index)
     truth = frame_truth(reference, current, sequence.intrinsics)
@@ -436,16 +442,21 @@ def flow_tiles(folder: Path, index: int, methods: list[str], grid: int = 3) -> N
         print(f"{np.round(climbed.as_tuple(), 2)} (edge correlation {correlation:.3f})")
     motions = {"rigid truth": truth.motion}
     for method in methods:
-        motions[method] = Stabilizer(reference.disparity8, method).estimate(current.disparity8)
+        motions[method] = Stabilizer(reference.disparity8, method,
+                                     verification=None).estimate(current.disparity8)
     for name, motion in motions.items():
         print(f"\n{name}: {motion.status} {np.round(motion.as_tuple(), 2)}")
         if not motion.ok:
             continue
-        checked = verifier(current.disparity8, motion)
-        print(f"  the check: {checked.status} {checked.diagnostics.get('verify_failed', '')}, "
-              f"edge correlation {checked.diagnostics['verify_correlation']:.3f}, its optimum "
-              f"{np.round(checked.diagnostics['verify_optimum'], 2)} at "
-              f"{checked.diagnostics['verify_optimum_correlation']:.3f}; disparity difference "
+        measured = verifier(current.disparity8, motion).diagnostics
+        rival = measured.get("verify_candidate")
+        print(f"  the check: {measured.get('verify_failed', 'ok')}, edge correlation "
+              f"{measured.get('verify_correlation', math.nan):.3f}, its optimum "
+              f"{np.round(measured.get('verify_optimum', (math.nan,) * 3), 2)} at "
+              f"{measured.get('verify_optimum_correlation', math.nan):.3f}"
+              + ("" if rival is None else f", rival {np.round(rival, 2)} at "
+                 f"{measured['verify_candidate_correlation']:.3f}")
+              + f"; disparity difference "
               f"{_disparity_difference(reference.disparity8, current.disparity8, motion):.2f}")
         off = target - transform_points(motion, source, pairs.shape)
         for row_of_tiles in range(grid):
