@@ -175,33 +175,29 @@ def overlap_climb_time(folders: list[Path], stride: int) -> None:
             Refinements(final_overlap_climb=True, large_template_border_px=0)})
 
 
-def second_look_time(folders: list[Path], stride: int) -> None:
-    """Process CPU ms per frame of ``t2fuzzy`` through the trust check with its second look at
-    doubtful estimates and without it (``doubtful_offset_deg=inf``), the two alternating frame
-    by frame, and how many frames got a second look (docs/method.md, section 12)."""
+#: What the timing commands of a refinement compare: the command, the names of the variants
+#: with and without it, the setting that switches it off, the diagnostics keys that say it ran
+#: on a frame, and how the count is printed (docs/method.md, section 12).
+REFINEMENT_TIMINGS = {
+    "second-look": ("second look", "no second look", {"doubtful_offset_deg": math.inf},
+                    ("second_look_from", "second_look"), "second looks"),
+    "astray-climb": ("recovery", "no recovery", {"astray_climb_recovery": False},
+                     ("astray_climb",), "astray climbs recovered"),
+}
+
+
+def refinement_time(folders: list[Path], stride: int, command: str) -> None:
+    """Process CPU ms per frame of ``t2fuzzy`` through the trust check with a refinement and
+    without it (``REFINEMENT_TIMINGS[command]``), the two alternating frame by frame, and on
+    how many frames the refinement ran."""
     from stabilizer.t2fuzzy_refinements import Refinements
     from stabilizer.verification import VerificationParams
 
+    on, off, switched_off, keys, counted = REFINEMENT_TIMINGS[command]
     motions = _alternating_times(folders, stride, VerificationParams(), {
-        "second look": Refinements(),
-        "no second look": Refinements(doubtful_offset_deg=math.inf)})["second look"]
-    looked = sum("second_look_from" in m.diagnostics or "second_look" in m.diagnostics
-                 for m in motions)
-    print(f"second looks: {looked} of {len(motions)} frames")
-
-
-def astray_climb_time(folders: list[Path], stride: int) -> None:
-    """Process CPU ms per frame of ``t2fuzzy`` through the trust check with its recovery of
-    astray climbs and without it (``astray_climb_recovery=False``), the two alternating frame
-    by frame, and on how many frames the recovery ran (docs/method.md, section 12)."""
-    from stabilizer.t2fuzzy_refinements import Refinements
-    from stabilizer.verification import VerificationParams
-
-    motions = _alternating_times(folders, stride, VerificationParams(), {
-        "recovery": Refinements(),
-        "no recovery": Refinements(astray_climb_recovery=False)})["recovery"]
-    recovered = sum("astray_climb" in m.diagnostics for m in motions)
-    print(f"astray climbs recovered: {recovered} of {len(motions)} frames")
+        on: Refinements(), off: Refinements(**switched_off)})[on]
+    ran = sum(any(key in m.diagnostics for key in keys) for m in motions)
+    print(f"{counted}: {ran} of {len(motions)} frames")
 
 
 def check_time(folders: list[Path], stride: int, param: str, values: list[float]) -> None:
@@ -628,10 +624,8 @@ def main(argv: list[str] | None = None) -> int:
                 dict(_setting(text) for text in args.refinements))
     elif args.command == "overlap-climb":
         overlap_climb_time(_sequences(args.folders), args.stride)
-    elif args.command == "second-look":
-        second_look_time(_sequences(args.folders), args.stride)
-    elif args.command == "astray-climb":
-        astray_climb_time(_sequences(args.folders), args.stride)
+    elif args.command in REFINEMENT_TIMINGS:
+        refinement_time(_sequences(args.folders), args.stride, args.command)
     elif args.command == "check-time":
         check_time(_sequences(args.folders), args.stride, args.param, args.values)
     elif args.command == "margins":

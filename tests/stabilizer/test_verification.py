@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -25,6 +24,7 @@ from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (UNVERIFIED, VerificationParams, Verifier, _half_resolution,
                                      _median, depth_disagreement, disparity_range, edge_image,
                                      noise_level)
+from tests.stabilizer.walking_frames import walking_frames
 
 METHODS = available_methods()
 
@@ -90,9 +90,7 @@ def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
     disagrees in depth on a fifth of the pixels. Frames 31 (the reference) and 68 of the
     corridor walk `python benchmarks/t2fuzzy_failures.py record` makes with the default gait
     and tuning scene seed 2003; the truth is the recorded one."""
-    data = Path(__file__).parent / "data"
-    reference, current = (cv2.imread(str(data / f"corridor_2003_frame{index:03d}.png"),
-                                     cv2.IMREAD_UNCHANGED) for index in (31, 68))
+    reference, current = walking_frames("corridor_2003", 31, 68)
     truth = Motion(1.2659547710090397, 11.757387012140912, -10.569362345927729)
     params = VerificationParams()
     checked = Verifier(reference, params)(current, truth)
@@ -393,9 +391,7 @@ def test_a_candidate_climb_that_ends_half_a_step_away_is_climbed_at_full_resolut
     estimate's offset limits; at full resolution it stays at 10.7 degrees, a rival within
     ``candidate_margin``: the estimate is ambiguous. With the earlier limit of a whole grid
     step the candidate was not climbed again and the estimate passed."""
-    data = Path(__file__).parent / "data"
-    reference, current = (cv2.imread(str(data / f"office_2009_frame{index:03d}.png"),
-                                     cv2.IMREAD_UNCHANGED) for index in (253, 272))
+    reference, current = walking_frames("office_2009", 253, 272)
     truth, estimate = (Motion(11.492632372346655, 41.104373417026004, -11.650465982096208),
                        Motion(6.2, 37.48, -10.27))
     checked = Verifier(reference)(current, estimate)
