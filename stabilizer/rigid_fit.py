@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -37,12 +38,17 @@ class RigidFit:
     reference_centred: np.ndarray
     current_centred: np.ndarray
 
+    @cached_property
+    def residual(self) -> np.ndarray:
+        """The reference points moved by ``motion`` less the current points (N x 2, px): the
+        part of the point motion no 2-D rigid model explains. Computed when first asked (the
+        peers' iterations do not need it)."""
+        return self.reference_centred @ self.rotation.T - self.current_centred
+
     @property
     def residual_rms_px(self) -> float:
-        """RMS distance (px) between the current points and the reference points moved by
-        ``motion``: the part of the point motion no 2-D rigid model explains. Computed when
-        asked (the peers' iterations do not need it)."""
-        residual = self.reference_centred @ self.rotation.T - self.current_centred
+        """RMS length (px) of :attr:`residual`."""
+        residual = self.residual
         return float(np.sqrt(np.mean(np.sum(residual * residual, axis=1))))
 
 

@@ -261,7 +261,8 @@ def safe_name(method: str) -> str:
 def save_figure(figure: Figure, path: Path) -> Path:
     FigureCanvasAgg(figure)
     with atomic_path(path) as temporary:
-        figure.savefig(temporary, format="png", dpi=PLOT_DPI)
+        # zlib level 1: a fifth of the default level's time for a file about 10% larger.
+        figure.savefig(temporary, format="png", dpi=PLOT_DPI, pil_kwargs={"compress_level": 1})
     return path
 
 
@@ -293,8 +294,9 @@ def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> P
                 label=method)
         if failed.any():
             ax.plot(times[failed], truth[failed], "x", color="tab:red", label="no estimate")
-        for change in changes:
-            ax.axvline(change, color="0.6", linestyle=":", linewidth=0.8)
+        # One collection per axes: an axvline per change cost a third of the figure's time.
+        ax.vlines(changes, 0.0, 1.0, transform=ax.get_xaxis_transform(), colors="0.6",
+                  linestyles=":", linewidths=0.8)
         ax.set_ylabel(f"{AXIS_TITLES[axis].split()[0]} ({AXIS_UNITS[axis]})")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="upper right", fontsize="small")

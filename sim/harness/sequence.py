@@ -45,10 +45,12 @@ DEPTH_DIR, EXACT_DIR = "depth", "exact"
 #: How a recording ended (sequence.json "ended"); "incomplete" until its final write.
 ENDINGS = ("complete", "fell", "interrupted")
 INCOMPLETE = "incomplete"
-#: zlib level of the frames' PNGs. Level 9 took 8.4 ms an image here and made recording a
-#: sequence twice as slow (300 frames of corridor_straight: 9.3 s against 4.5 s) for files 6%
-#: smaller; decoding takes the same time (0.32 ms) at either level.
-PNG_COMPRESSION = 3
+#: zlib level of each folder's PNGs. The reported depth is noisy in its last digits and
+#: compresses to 76% at best, so it is stored uncompressed: decoding it then takes 0.12 ms
+#: instead of 0.37 ms (level 3), for a sequence of 46 MB instead of 38 MB (default scenario).
+#: The exact depth of smooth surfaces compresses to a fifth at level 3 (uncompressed, it would
+#: take the sequence past 60 MB); level 9 would save 6% more and make recording twice as slow.
+PNG_COMPRESSION = {DEPTH_DIR: 0, EXACT_DIR: 3}
 #: Columns of truth.csv, in order (docs/sequence-format.md describes each).
 ROTATION_COLUMNS = tuple(f"r{row}{col}" for row in range(3) for col in range(3))
 TRUTH_COLUMNS = ("frame", "time_s", "reference_frame", "gait_cycle", "angle_deg", "dx", "dy",
@@ -188,7 +190,7 @@ class SequenceWriter:
         for folder, image in ((DEPTH_DIR, encoded.depth), (EXACT_DIR, encoded.exact)):
             path = self.out_dir / folder / frame_file(row.frame)
             encoded_ok, png = cv2.imencode(".png", image,
-                                           [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
+                                           [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION[folder]])
             if not encoded_ok:
                 raise OSError(f"{path}: could not encode the PNG")
             with atomic_path(path) as temporary:
