@@ -374,7 +374,8 @@ def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
 def rescoring(n_frames: int | None = None) -> dict[str, float]:
     """Recording the default scenario, and re-scoring the sequence: speed and parallelism.
 
-    Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``), then
+    Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``; the
+    sequence's size on disk is reported too, at most 60 MB asked for the whole scenario), then
     times ``egostab score`` of ``t2fuzzy`` alone in this process, twice (as a multiple of real
     time: the sequence's simulated seconds per wall-clock second; the figure is the faster run,
     the first also pays the process's first imports of the report and plotting code, about
@@ -391,6 +392,8 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
         sim_time_s = record(RecordConfig(DEFAULT_SCENARIO, str(sequence),
                                          max_frames=n_frames))["sim_time_s"]
         record_rtf = sim_time_s / (time.perf_counter() - started)
+        sequence_mb = sum(path.stat().st_size for path in sequence.rglob("*")
+                          if path.is_file()) / 1e6
 
         def seconds(name: str, clock=time.perf_counter, **options) -> float:
             started = clock()
@@ -405,13 +408,14 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
         runs = [(seconds(f"workers1_{run}", workers=1), seconds(f"workers2_{run}", workers=2))
                 for run in range(2)]
         one, two = (min(times) for times in zip(*runs))
-    print(f"egostab record {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): {record_rtf:.2f}x real time")
+    print(f"egostab record {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): {record_rtf:.2f}x real time, "
+          f"{sequence_mb:.1f} MB")
     print(f"re-scoring t2fuzzy on a recorded {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): "
           f"{t2fuzzy_rtf:.1f}x real time, one core (runs of {first:.2f} s and {again:.2f} s); "
           f"{cpu_rtf:.1f}x in process CPU time")
     print(f"score, every method: --workers 1 {one:.1f} s, --workers 2 {two:.1f} s "
           f"({one / two:.2f}x)")
-    return {"record_realtime_factor": record_rtf,
+    return {"record_realtime_factor": record_rtf, "sequence_mb": sequence_mb,
             "rescore_t2fuzzy_realtime_factor": t2fuzzy_rtf,
             "rescore_t2fuzzy_cpu_realtime_factor": cpu_rtf, "score_workers1_s": one,
             "score_workers2_s": two}
@@ -507,7 +511,8 @@ def bench_markdown(figures: dict) -> str:
               *(f"| `egostab run` of the default scenario, {label} | {rtf:.2f}x real time |"
                 for label, rtf in figures["pipeline_realtime_factor"].items()),
               f"| `egostab record` of the default scenario | "
-              f"{figures['record_realtime_factor']:.2f}x real time |",
+              f"{figures['record_realtime_factor']:.2f}x real time, a sequence of "
+              f"{figures['sequence_mb']:.0f} MB |",
               "| re-scoring t2fuzzy alone on the recorded default scenario, one core, faster of "
               f"two runs | "
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
