@@ -41,7 +41,7 @@ import numpy as np
 from stabilizer.inputs import as_disparity
 from stabilizer.motion import Motion
 from stabilizer.t2fuzzy_refinements import Refinements
-from stabilizer.verification import VerificationParams, Verifier
+from stabilizer.verification import VerificationParams, shared_verifier
 
 #: Method name -> ("module:class", default parameters). Each class is built as
 #: ``cls(reference, **params)`` (the reference analysed once), has ``estimate(current) ->
@@ -84,6 +84,9 @@ class Stabilizer:
         verification: the thresholds of the trust check that every ``"ok"`` estimate passes
             (:class:`~stabilizer.verification.VerificationParams`); an estimate that fails it
             has the status ``"unverified"``. None: no check (the method's own criteria only).
+            Stabilizers of equal references with equal thresholds share one check
+            (:func:`~stabilizer.verification.shared_verifier`): the reference is analysed
+            once, and a frame that several methods estimate in turn is measured once.
         **params: the method's own parameters, passed to its estimator class (see its
             docstring); for example ``refinements=Refinements(rotation_search=False)`` or
             ``translation=TranslationParams(max_shift_px=20)`` for the ``t2fuzzy`` methods
@@ -104,7 +107,7 @@ class Stabilizer:
                                       min_side=estimator_class.min_side(**params),
                                       max_side=MAX_SIDE, method=method)
         self._estimator = estimator_class(self.reference, **params)
-        self._verifier = Verifier(self.reference, verification) if verification else None
+        self._verifier = shared_verifier(self.reference, verification) if verification else None
 
     def estimate(self, current: np.ndarray) -> Motion:
         """Motion of ``current`` relative to the reference (docs/design.md convention)."""

@@ -34,7 +34,7 @@ import numpy as np
 from stabilizer import Stabilizer, available_methods
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
-from stabilizer.verification import VerificationParams, Verifier
+from stabilizer.verification import VerificationParams, shared_verifier
 
 #: Entry-point group under which installed distributions register methods.
 ENTRY_POINT_GROUP = "egostab.stabilizers"
@@ -170,11 +170,11 @@ class PluginStabilizer:
     (uint8 disparity-like images of one shape, 0 = invalid), read-only, so a method cannot
     alter the frames the other methods see. Its result becomes a :class:`Motion`
     (:func:`as_motion`), and an ``"ok"`` result passes the same trust check as a built-in
-    method's (:class:`stabilizer.verification.Verifier`; ``"unverified"`` when it fails), so
-    ``"ok"`` means the same for every method scored. If building the estimator raises, every
-    frame against this reference fails with ``"exception:<type>"``; what ``estimate`` raises
-    is left to the caller (the harness's ``timed_estimate`` records it the same way as for a
-    built-in method).
+    method's (the verifier of :func:`stabilizer.verification.shared_verifier`;
+    ``"unverified"`` when it fails), so ``"ok"`` means the same for every method scored. If
+    building the estimator raises, every frame against this reference fails with
+    ``"exception:<type>"``; what ``estimate`` raises is left to the caller (the harness's
+    ``timed_estimate`` records it the same way as for a built-in method).
 
     Args:
         method: the name the method was given by (kept as ``self.method``).
@@ -189,7 +189,7 @@ class PluginStabilizer:
                  verification: VerificationParams | None = VerificationParams(), **params: Any):
         self.method = method
         self.reference = _read_only(as_disparity(reference, "reference"))
-        self._verifier = Verifier(self.reference, verification) if verification else None
+        self._verifier = shared_verifier(self.reference, verification) if verification else None
         self._failure: Motion | None = None
         if inspect.isclass(target):
             try:

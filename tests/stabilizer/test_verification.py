@@ -434,6 +434,53 @@ def test_checks_of_one_measured_frame_share_its_grid_search():
     assert len(searches) == 1 and measured.candidate is not None
 
 
+def test_methods_of_one_reference_share_one_check_and_each_frames_measurements(monkeypatch):
+    """Stabilizers of equal references with equal thresholds share one verifier
+    (shared_verifier), which measures a frame equal to the last one measured only once: each
+    method's estimate is checked as a verifier of its own checks it."""
+    import stabilizer.verification as verification
+
+    first, second = Stabilizer(REFERENCE, "ecc"), Stabilizer(REFERENCE.copy(), "sift")
+    assert first._verifier is second._verifier
+    stricter = VerificationParams(min_correlation=0.5)
+    assert Stabilizer(REFERENCE, "ecc", verification=stricter)._verifier is not first._verifier
+    other = scene(1, SR4000_SHAPE)
+    assert Stabilizer(other, "ecc")._verifier is not first._verifier
+    measured = []
+    measure_edges = verification.edge_image
+    monkeypatch.setattr(verification, "edge_image",
+                        lambda *args: measured.append(1) or measure_edges(*args))
+    checked = [first.estimate(CURRENT), second.estimate(CURRENT.copy())]
+    assert len(measured) == 1  # the current frame's edges, once for both methods
+    alone = [Verifier(REFERENCE)(CURRENT, Stabilizer(REFERENCE, method,
+                                                     verification=None).estimate(CURRENT))
+             for method in ("ecc", "sift")]
+    for shared, own in zip(checked, alone):
+        assert shared.as_tuple() == own.as_tuple() and shared.status == own.status
+        assert {key: value for key, value in shared.diagnostics.items()
+                if key.startswith("verify_")} == {key: value for key, value
+                                                  in own.diagnostics.items()
+                                                  if key.startswith("verify_")}
+    measured.clear()
+    first.estimate(apply_motion(REFERENCE, Motion(-3.0, 4.0, 2.0)))
+    assert len(measured) == 1  # another frame is measured
+
+
+def test_a_shared_verifier_keeps_its_own_copy_of_the_reference():
+    reference = scene(2, SR4000_SHAPE)
+    verifier = verification_of(reference)
+    untouched = verifier(CURRENT, TRUTH)
+    reference[:] = 0  # the caller reuses its array
+    assert verification_of(scene(2, SR4000_SHAPE)) is verifier
+    assert verifier(CURRENT, TRUTH) == untouched
+
+
+def verification_of(reference):
+    from stabilizer.verification import shared_verifier
+
+    return shared_verifier(reference, VerificationParams())
+
+
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
     """The fast path (uint8 filtered straight to float32, the median by partition) gives the
     documented edge image: cv2.GaussianBlur of the float frame and of its valid mask, and
