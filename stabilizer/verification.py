@@ -731,8 +731,10 @@ class Verifier:
         A candidate within the offset limits of both ``optimum`` and the estimate agrees with
         the estimate and is not climbed: the climb from there ends at that optimum (of 393 such
         candidates on the walking frames of docs/method.md, section 11, "Cost", climbed anyway,
-        one ended beyond the offset limits of the estimate). Nor is the correlation of a motion
-        within the offset limits of the estimate measured: it cannot fail the estimate.
+        one ended beyond the offset limits of the estimate). The ends of the climbs and their
+        correlations depend on the frame alone: they are kept with its measurements
+        (``CurrentEdges.candidate_ends``) for the checks of its other estimates; an end within
+        the offset limits of the estimate cannot fail it.
         """
         params = self.params
         if current.candidate is None:
