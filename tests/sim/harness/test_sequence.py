@@ -116,3 +116,16 @@ def test_a_sensor_without_range_limit_is_stored_in_the_coarser_unit(tmp_path):
     sr4000 = record(RecordConfig(scenario=str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"),
                                  out_dir=str(tmp_path / "r"), max_frames=1))
     assert sr4000["depth_unit_m"] == FINE_DEPTH_UNIT_M
+
+
+def test_the_default_scenario_records_within_60_mb(tmp_path):
+    """Issue 11's size limit for the default 25 s scenario, from its first 30 frames: the images
+    take about the same room in every frame (the reported depth is stored uncompressed), so the
+    whole sequence takes about 25 s x 30 fps times a frame's share."""
+    from scenarios import DEFAULT_SCENARIO
+
+    scenario = load_scenario(DEFAULT_SCENARIO)
+    n_frames = round(scenario.duration_s * scenario.sensor.fps)
+    record(RecordConfig(scenario=DEFAULT_SCENARIO, out_dir=str(tmp_path / "s"), max_frames=30))
+    size = sum(path.stat().st_size for path in (tmp_path / "s").rglob("*") if path.is_file())
+    assert size / 30 * n_frames <= 60e6
