@@ -541,8 +541,7 @@ class Verifier:
         several methods' estimates: the last frame measured is kept, and a frame equal to it
         gets the same set, with what its checks have found so far)."""
         last = self._last_measured
-        if (last is not None and last.disparity.shape == current.shape
-                and np.array_equal(last.disparity, current)):
+        if last is not None and np.array_equal(last.disparity, current):
             return last
         edges = edge_image(current, self.params.sigma_px, self.params.clip_factor)
         null_correlation, _ = structure_correlation(*self._reference, *edges)
@@ -731,10 +730,11 @@ class Verifier:
         A candidate within the offset limits of both ``optimum`` and the estimate agrees with
         the estimate and is not climbed: the climb from there ends at that optimum (of 393 such
         candidates on the walking frames of docs/method.md, section 11, "Cost", climbed anyway,
-        one ended beyond the offset limits of the estimate). The ends of the climbs and their
-        correlations depend on the frame alone: they are kept with its measurements
-        (``CurrentEdges.candidate_ends``) for the checks of its other estimates; an end within
-        the offset limits of the estimate cannot fail it.
+        one ended beyond the offset limits of the estimate). The ends of the climbs depend on
+        the frame alone: they are kept with its measurements (``CurrentEdges.candidate_ends``)
+        for the checks of its other estimates, with the correlation of each once measured. Nor
+        is the correlation of an end within the offset limits of the estimate measured: it
+        cannot fail the estimate.
         """
         params = self.params
         if current.candidate is None:
@@ -749,11 +749,14 @@ class Verifier:
                 # Astray at half resolution: the full-resolution climb may stay near the
                 # candidate.
                 ends.append(self.full_resolution_optimum(current.edges, candidate) or candidate)
-            current.candidate_ends = [
-                (end, structure_correlation(*self._reference, *current.edges, end)[0])
-                for end in ends]
-        rivals = [(correlation, end) for end, correlation in current.candidate_ends
-                  if self._beyond_offset(end, motion)]
+            current.candidate_ends = [[end, None] for end in ends]
+        rivals = []
+        for kept in current.candidate_ends:  # [end, its correlation once measured]
+            if self._beyond_offset(kept[0], motion):
+                if kept[1] is None:
+                    kept[1] = structure_correlation(*self._reference, *current.edges,
+                                                    kept[0])[0]
+                rivals.append((kept[1], kept[0]))
         if not rivals:
             return None
         correlation, refined = max(rivals, key=lambda rival: rival[0])
@@ -777,7 +780,7 @@ class Verifier:
 
 #: How many verifiers :func:`shared_verifier` keeps, the most recently asked for.
 SHARED_VERIFIERS_KEPT = 4
-_shared_verifiers: list[tuple[VerificationParams, np.ndarray, Verifier]] = []
+_shared_verifiers: list[Verifier] = []
 
 
 def shared_verifier(reference: np.ndarray,
@@ -792,14 +795,13 @@ def shared_verifier(reference: np.ndarray,
     estimate): the checks of six methods cost about a fifth less than six separate ones, with
     the same results. The verifier holds its own copy of the reference.
     """
-    for index, (kept_params, kept_reference, verifier) in enumerate(_shared_verifiers):
-        if (kept_params == params and kept_reference.shape == reference.shape
-                and np.array_equal(kept_reference, reference)):
+    for index, verifier in enumerate(_shared_verifiers):
+        if verifier.params == params and np.array_equal(verifier._reference_disparity,
+                                                        reference):
             _shared_verifiers.append(_shared_verifiers.pop(index))
             return verifier
-    own = reference.copy()
-    verifier = Verifier(own, params)
-    _shared_verifiers.append((params, own, verifier))
+    verifier = Verifier(reference.copy(), params)
+    _shared_verifiers.append(verifier)
     del _shared_verifiers[:-SHARED_VERIFIERS_KEPT]
     return verifier
 
@@ -817,8 +819,9 @@ class CurrentEdges:
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
         candidate: the best motion of the search over the grid of angles
             (:meth:`Verifier.candidate`), once a check has needed it; None before.
-        candidate_ends: the ends of the candidate's climbs (:meth:`Verifier._rival_candidate`)
-            and their :func:`structure_correlation`, once a check has needed them; None before.
+        candidate_ends: the ends of the candidate's climbs (:meth:`Verifier._rival_candidate`),
+            each as [end, its :func:`structure_correlation` or None until a check needs it],
+            once a check has needed them; None before.
         null_disagreement: the :func:`depth_disagreement` of the uncompensated frame, once a
             check has needed it (test 6); None before.
     """
@@ -829,7 +832,7 @@ class CurrentEdges:
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
     candidate: Motion | None = None
-    candidate_ends: list[tuple[Motion, float]] | None = None
+    candidate_ends: list[list] | None = None
     null_disagreement: float | None = None
 
 

@@ -23,7 +23,7 @@ from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (UNVERIFIED, VerificationParams, Verifier, _half_resolution,
                                      _median, depth_disagreement, disparity_range, edge_image,
-                                     noise_level)
+                                     noise_level, shared_verifier)
 from tests.stabilizer.walking_frames import walking_frames
 
 METHODS = available_methods()
@@ -468,17 +468,11 @@ def test_methods_of_one_reference_share_one_check_and_each_frames_measurements(m
 
 def test_a_shared_verifier_keeps_its_own_copy_of_the_reference():
     reference = scene(2, SR4000_SHAPE)
-    verifier = verification_of(reference)
+    verifier = shared_verifier(reference)
     untouched = verifier(CURRENT, TRUTH)
     reference[:] = 0  # the caller reuses its array
-    assert verification_of(scene(2, SR4000_SHAPE)) is verifier
+    assert shared_verifier(scene(2, SR4000_SHAPE)) is verifier
     assert verifier(CURRENT, TRUTH) == untouched
-
-
-def verification_of(reference):
-    from stabilizer.verification import shared_verifier
-
-    return shared_verifier(reference, VerificationParams())
 
 
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
