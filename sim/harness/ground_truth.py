@@ -227,14 +227,20 @@ def ground_truth(reference: Frame, current: Frame,
     rows, cols, rays = pixel_rays(intrinsics, int(stride))
     depth, usable = _sample_depth(reference, reference_depth_m, rows, cols, max_depth_m)
     # np.compress: the rows of a boolean mask at a third of the cost of indexing with it.
-    points = np.compress(usable, rays, axis=0) * np.compress(usable, depth)[:, None]
+    points = np.compress(usable, rays, axis=0)
+    usable_depth = np.compress(usable, depth)
+    # Column by column: the values of broadcasting, which is slow along an axis of length 3.
+    for column in range(3):
+        points[:, column] *= usable_depth
 
     # Relative pose: current_from_reference = cur_mat^T [ref_mat | ref_pos - cur_pos].
     current_mat = np.asarray(current.cam_mat, dtype=np.float64)
     rotation = current_mat.T @ np.asarray(reference.cam_mat, dtype=np.float64)
     translation = current_mat.T @ (np.asarray(reference.cam_pos, dtype=np.float64)
                                    - np.asarray(current.cam_pos, dtype=np.float64))
-    moved = points @ rotation.T + translation
+    moved = points @ rotation.T
+    for column in range(3):
+        moved[:, column] += translation[column]
     moved_depth = -moved[:, 2]
     in_front = moved_depth > MIN_DEPTH_M
     safe_depth = np.where(in_front, moved_depth, 1.0)
@@ -255,11 +261,11 @@ def ground_truth(reference: Frame, current: Frame,
         return GroundTruth(Motion.failed("no_overlap", n_points=n_points), math.nan, n_points)
 
     kept = np.flatnonzero(usable)[keep]
-    source = np.stack([cols[kept], rows[kept]], axis=1).astype(np.float64)
-    target = np.stack([u[keep], v[keep]], axis=1)
+    source, target = np.empty((n_points, 2)), np.empty((n_points, 2))
+    source[:, 0], source[:, 1] = cols[kept], rows[kept]
+    target[:, 0], target[:, 1] = u[keep], v[keep]
     shape = (intrinsics.height, intrinsics.width)
     fit = fit_rigid(source, target, shape)
-    residual = fit.residual
-    residual_mean_px = float(np.sqrt(np.einsum("ij,ij->i", residual, residual)).mean())
+    residual_mean_px = float(np.sqrt(fit.squared_residual).mean())
     return GroundTruth(fit.motion, fit.residual_rms_px, n_points, residual_mean_px,
                        Correspondences(source, target, shape))
