@@ -168,13 +168,25 @@ class FileEstimation:
 
 def read_estimates(path: Path, n_frames: int) -> dict:
     """Frame -> Motion of an estimates file; a bad row is refused with its line number."""
+    from sim.harness.validation import FileValueError
+
+    try:
+        return _read_estimates(path, n_frames)
+    except UnicodeDecodeError as error:
+        raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at byte "
+                             f"{error.start})", "a UTF-8 CSV file (a byte-order mark is "
+                             "allowed)") from None
+
+
+def _read_estimates(path: Path, n_frames: int) -> dict:
     import csv
 
     from sim.harness.validation import FileValueError
     from stabilizer.motion import OK, Motion
 
     motions: dict[int, Motion] = {}
-    with open(path, newline="", encoding="utf-8") as handle:
+    # utf-8-sig: spreadsheets and some shells (PowerShell, .NET) start UTF-8 with a byte-order mark.
+    with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.DictReader(handle)
         header = [name.strip() for name in (reader.fieldnames or ())]
         missing = [name for name in ESTIMATE_COLUMNS if name not in header]
@@ -205,7 +217,7 @@ def read_estimates(path: Path, n_frames: int) -> dict:
                 raise FileValueError(where, "frame", f"{frame} appears a second time",
                                      "each frame at most once")
             status = (cells.get("status") or "").strip() or OK
-            if status == OK:
+            if status.lower() == OK:  # "OK" and "Ok" too: no failure status reads "ok"
                 values = tuple(number(name) for name in ESTIMATE_COLUMNS[1:])
                 bad = [n for n, v in zip(ESTIMATE_COLUMNS[1:], values) if not math.isfinite(v)]
                 if bad:

@@ -299,18 +299,30 @@ def _parse_row(cells: dict[str, str], source: str, line: int) -> TruthRow:
 
 
 def read_truth_csv(path: Path, n_frames: int) -> list[TruthRow]:
-    """truth.csv's rows, checked: every column, frames 0..n_frames-1 in order."""
-    with open(path, newline="", encoding="utf-8") as handle:
-        reader = csv.DictReader(handle)
-        missing = [name for name in TRUTH_COLUMNS if name not in (reader.fieldnames or ())]
-        if missing:
-            raise FileValueError(str(path), "header", f"lacks column(s) {', '.join(missing)}",
-                                 f"the columns {', '.join(TRUTH_COLUMNS)}")
-        rows = [_parse_row(cells, str(path), line) for line, cells in enumerate(reader, start=2)]
+    """truth.csv's rows, checked: every column, frames 0..n_frames-1 in order, each frame's
+    reference the frame itself or an earlier one. UTF-8, with or without a byte-order mark (a
+    table saved again by a spreadsheet)."""
+    with open(path, newline="", encoding="utf-8-sig") as handle:
+        try:
+            reader = csv.DictReader(handle)
+            missing = [name for name in TRUTH_COLUMNS if name not in (reader.fieldnames or ())]
+            if missing:
+                raise FileValueError(str(path), "header", f"lacks column(s) {', '.join(missing)}",
+                                     f"the columns {', '.join(TRUTH_COLUMNS)}")
+            rows = [_parse_row(cells, str(path), line)
+                    for line, cells in enumerate(reader, start=2)]
+        except UnicodeDecodeError as error:
+            raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at "
+                                 f"byte {error.start})", "a UTF-8 CSV file") from None
     for position, row in enumerate(rows):
+        where = f"{path}:{position + 2}"
         if row.frame != position:
-            raise FileValueError(f"{path}:{position + 2}", "frame", f"is {row.frame}",
+            raise FileValueError(where, "frame", f"is {row.frame}",
                                  f"frames 0, 1, 2, ... in order (here {position})")
+        if not 0 <= row.reference_frame <= position:
+            raise FileValueError(where, "reference_frame", f"is {row.reference_frame}",
+                                 f"a frame from 0 to {position} (the frame itself or an "
+                                 f"earlier one)")
     if len(rows) != n_frames:
         raise FileValueError(str(path), "rows", f"has {len(rows)} frame(s)",
                              f"one row per frame: sequence.json says {n_frames}")

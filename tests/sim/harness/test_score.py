@@ -139,6 +139,24 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
 
 
+def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
+    # A byte-order mark, CRLF line ends, quoted fields and an upper-case "OK" change nothing.
+    plain = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv")
+    lines = plain.read_text().splitlines()
+    quoted = [",".join(f'"{cell}"' for cell in line.split(",")).replace('"ok"', '"OK"')
+              for line in lines]
+    saved = tmp_path / "saved.csv"
+    saved.write_bytes(("\r\n".join(quoted) + "\r\n").encode("utf-8-sig"))
+    scored = []
+    for name, path in (("plain", plain), ("saved", saved)):
+        out = tmp_path / name
+        score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                          estimates={"mine": str(path)}, record=False))
+        scored.append(_rows(out))
+    assert scored[0] == scored[1]
+    assert sum(row["status"] == "ok" for row in scored[1]) == N_FRAMES - 1
+
+
 @pytest.mark.parametrize("text, line, column", [
     ("frame,angle_deg,dx\n0,0,0\n", 1, "header"),
     ("frame,angle_deg,dx,dy\n0,0,0,0\n1,0,zero,0\n", 3, "dx"),
@@ -146,15 +164,17 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     ("frame,angle_deg,dx,dy\n0,0,0,0\n999,0,0,0\n", 3, "frame"),
     ("frame,angle_deg,dx,dy\nfirst,0,0,0\n", 2, "frame"),
     ("frame,angle_deg,dx,dy\n0,0,nan,0\n", 2, "dx"),
+    ("frame,angle_deg,dx,dy\n0,0,0,0\n".encode("utf-16"), "", "encoding"),
 ])
 def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text, line, column):
     path = tmp_path / "bad.csv"
-    path.write_text(text)
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
     out = tmp_path / "out"
     assert main(["score", str(folders / "sequence"), "--estimates", f"mine={path}",
                  "--out", str(out), "--quiet", "--no-record"]) == 2
     err = capsys.readouterr().err.strip()
-    assert f"{path}:{line}: {column}" in err and "\n" not in err
+    where = f"{path}:{line}" if line else str(path)
+    assert f"{where}: {column}" in err and "\n" not in err
     assert not (out / "metrics.json").exists()
 
 

@@ -67,6 +67,29 @@ def _set_json(key, value):
     return damage
 
 
+def _edit_truth(edit):
+    """A damage that rewrites truth.csv as the bytes ``edit`` makes of its text."""
+    def damage(folder):
+        path = folder / "truth.csv"
+        path.write_bytes(edit(path.read_text()))
+    return damage
+
+
+def _set_cell(text: str, frame: int, column: str, value: str) -> str:
+    lines = text.splitlines()
+    header = lines[0].split(",")
+    cells = lines[frame + 1].split(",")
+    cells[header.index(column)] = value
+    lines[frame + 1] = ",".join(cells)
+    return "\n".join(lines) + "\n"
+
+
+def test_a_truth_table_saved_with_a_byte_order_mark_reads_the_same(sequence_dir, tmp_path):
+    copy = _broken_copy(sequence_dir, tmp_path,
+                        _edit_truth(lambda text: text.encode("utf-8-sig")))
+    assert load_sequence(copy).rows == load_sequence(sequence_dir).rows
+
+
 @pytest.mark.parametrize("damage, named", [
     (_set_json("format", "egostab-sequence/99"), "sequence.json"),
     (_set_json("ended", "incomplete"), "sequence.json"),
@@ -75,6 +98,11 @@ def _set_json(key, value):
     (lambda folder: (folder / "truth.csv").write_text(",".join(TRUTH_COLUMNS[:5]) + "\n"),
      "truth.csv"),
     (lambda folder: (folder / "sequence.json").write_text("{not json"), "sequence.json"),
+    (_edit_truth(lambda text: text.encode("utf-16")), "truth.csv: encoding"),
+    (_edit_truth(lambda text: _set_cell(text, 4, "reference_frame", "50").encode()),
+     "truth.csv:6: reference_frame"),
+    (_edit_truth(lambda text: _set_cell(text, 2, "reference_frame", "4").encode()),
+     "truth.csv:4: reference_frame"),
 ])
 def test_a_bad_sequence_is_refused_naming_the_file(sequence_dir, tmp_path, damage, named):
     with pytest.raises(FileValueError) as error:
