@@ -54,7 +54,7 @@ def _method_list(text: str) -> tuple[str, ...]:
     return available_methods() if text == "all" else _methods(text)
 
 
-def _worker_count(text: str) -> int:
+def _positive_integer(text: str) -> int:
     if not text.strip().isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"{text!r}: accepted: an integer >= 1")
     return int(text)
@@ -119,8 +119,12 @@ def _cmd_score(args: argparse.Namespace) -> int:
     from sim.harness.sequence import load_sequence
 
     estimates = estimates_by_name(args.estimates)
-    load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
-    out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
+    sequence = load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
+    out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
+    if out.resolve() == sequence.path.resolve():
+        raise ValueError(f"--out {out}: is the sequence folder; accepted: a folder of its own "
+                         f"for the run (default results/<sequence name>)")
+    out_dir = prepare_output_dir(out)
     metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
                                 methods=args.methods, estimates=estimates,
                                 record=not args.no_record, workers=args.workers,
@@ -213,7 +217,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
     """The options of the commands that simulate a scenario (run, record)."""
     parser.add_argument("--out", type=Path, default=None, help=out_help)
-    parser.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    parser.add_argument("--max-frames", type=_positive_integer, default=None,
+                        help="stop after N frames")
     parser.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -234,7 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "built-in ones (default: the scenario's)")
     _add_simulation_arguments(run, "run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
-    run.add_argument("--workers", type=_worker_count, default=None,
+    run.add_argument("--workers", type=_positive_integer, default=None,
                      help="processes running the methods beside the simulation, one thread "
                           "each; 1: the methods run in this process (default: one per method "
                           "and core when more than one method runs, else 1)")
@@ -262,7 +267,7 @@ def build_parser() -> argparse.ArgumentParser:
     scorer.add_argument("--out", type=Path, default=None,
                         help="run folder (default: results/<sequence folder name>; for a "
                              "suite's runs/<name>/sequence, results/<name>)")
-    scorer.add_argument("--workers", type=_worker_count, default=None,
+    scorer.add_argument("--workers", type=_positive_integer, default=None,
                         help="processes running the methods, one thread each; 1: this "
                              "process (default: one per core)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")

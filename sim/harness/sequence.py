@@ -172,16 +172,21 @@ class SequenceWriter:
     """Writes a sequence folder frame by frame; ``close`` writes the tables and sequence.json.
 
     sequence.json says "incomplete" from the start until ``close``, so a folder whose writer
-    was killed is refused by ``load_sequence``.
+    was killed is refused by ``load_sequence``. A sequence already in the folder is replaced:
+    its frame images go first, so that a shorter recording leaves none of them behind (other
+    files stay).
     """
 
     def __init__(self, out_dir: str | Path, header: Mapping[str, Any]):
         self.out_dir = Path(out_dir)
         self.header = dict(header)
         self.rows: list[TruthRow] = []
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._write_json(INCOMPLETE, "", None)  # first: a sequence being replaced is refused
         for folder in (DEPTH_DIR, EXACT_DIR):
             (self.out_dir / folder).mkdir(parents=True, exist_ok=True)
-        self._write_json(INCOMPLETE, "", None)
+            for stale in (self.out_dir / folder).glob("[0-9]" * 6 + ".png"):
+                stale.unlink()
 
     def add(self, encoded: EncodedFrame, row: TruthRow) -> None:
         """Store one frame's images and its truth row."""

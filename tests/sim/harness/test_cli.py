@@ -152,13 +152,16 @@ def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
         assert problem in _one_line_error(capsys, command[0])
 
 
-@pytest.mark.parametrize("command", [["run"], ["score", "no_sequence"]])
+@pytest.mark.parametrize("command, option", [(["run"], "--workers"),
+                                             (["score", "no_sequence"], "--workers"),
+                                             (["run"], "--max-frames"),
+                                             (["record"], "--max-frames")])
 @pytest.mark.parametrize("count", ["0", "-2", "two"])
-def test_a_bad_worker_count_is_refused(command, count, capsys):
+def test_a_bad_count_is_refused(command, option, count, capsys):
     with pytest.raises(SystemExit) as exit_info:
-        main([*command, "--workers", count])
+        main([*command, option, count])
     assert exit_info.value.code == 2
-    assert f"--workers: {count!r}: accepted: an integer >= 1" in capsys.readouterr().err
+    assert f"{option}: {count!r}: accepted: an integer >= 1" in capsys.readouterr().err
 
 
 def test_a_method_given_twice_is_refused(capsys):

@@ -139,6 +139,16 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
 
 
+def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
+    sequence = folders / "sequence"
+    before = sorted(path.name for path in sequence.iterdir())
+    assert main(["score", str(sequence / "depth" / ".."), "--methods", "ecc",
+                 "--out", str(sequence), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "is the sequence folder" in err and "\n" not in err
+    assert sorted(path.name for path in sequence.iterdir()) == before
+
+
 def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     # A byte-order mark, CRLF line ends, quoted fields and an upper-case "OK" change nothing.
     plain = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv")

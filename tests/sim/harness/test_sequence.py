@@ -133,6 +133,19 @@ def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path,
     assert not list((tmp_path / "seq").rglob(".*.tmp"))
 
 
+def test_a_shorter_recording_replaces_a_sequence_without_leaving_its_frames(sequence_dir,
+                                                                           tmp_path):
+    folder = tmp_path / "seq"
+    shutil.copytree(sequence_dir, folder)
+    (folder / "notes.txt").write_text("the user's own file")
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(folder), max_frames=2))
+    assert load_sequence(folder).n_frames == 2
+    for images in ("depth", "exact"):
+        assert sorted(path.name for path in (folder / images).iterdir()) == ["000000.png",
+                                                                            "000001.png"]
+    assert (folder / "notes.txt").read_text() == "the user's own file"
+
+
 def test_a_sensor_without_range_limit_is_stored_in_the_coarser_unit(tmp_path):
     from sim.harness.sequence import EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M
 
