@@ -124,7 +124,11 @@ def load_image(image: str, scene_seed: int = 0, resize: bool = False) -> np.ndar
         raise ValueError(f"{image!r} is neither a file nor a scene name; accepted: an 8-bit "
                          f"or 16-bit PNG, a .npy depth in metres, or one of {', '.join(SCENES)}")
     if path.suffix.lower() == ".npy":
-        depth = np.load(path)
+        try:
+            depth = np.load(path)  # never pickles: an object array is refused
+        except (ValueError, OSError, EOFError) as error:
+            raise ValueError(f"{image}: cannot read it as a .npy array ({error}); accepted: "
+                             f"a 2-D numeric array of depths in metres (numpy.save)") from None
         if depth.ndim != 2 or not np.issubdtype(depth.dtype, np.number):
             raise ValueError(f"{image}: need a 2-D array of depths in metres; got "
                              f"{depth.dtype} with shape {depth.shape}")

@@ -85,6 +85,12 @@ def test_ideal_mode_rejects_what_it_cannot_read(tmp_path, capsys):
     assert "single-channel" in capsys.readouterr().err
     assert main(["ideal", "no_such_file.png", "--out", str(tmp_path / "o")]) == 2
     assert "neither a file nor a scene" in capsys.readouterr().err
+    np.save(tmp_path / "objects.npy", np.array([{"depth": 1.0}], dtype=object))
+    (tmp_path / "text.npy").write_text("not numpy")
+    for name in ("objects.npy", "text.npy"):
+        assert main(["ideal", str(tmp_path / name), "--out", str(tmp_path / "o")]) == 2
+        err = _one_line_error(capsys, "ideal")
+        assert f"{name}: cannot read it as a .npy array" in err
 
 
 def test_aggregate_makes_one_table_of_several_runs(tmp_path, capsys):
