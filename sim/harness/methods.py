@@ -131,7 +131,8 @@ def _load(name: str) -> Any:
         module_name, attribute = name.split(":")
         try:
             target = importlib.import_module(module_name)
-        except Exception as error:  # a plugin's own import error is the user's to read
+        # A plugin's own import error (or a sys.exit() on import) is the user's to read.
+        except (Exception, SystemExit) as error:
             raise MethodError(name, f"cannot import module {module_name} "
                                     f"({_one_line(error)})") from None
         for part in attribute.split("."):
@@ -147,7 +148,7 @@ def _load(name: str) -> Any:
     entry_point = next(iter(entry_points))
     try:
         return entry_point.load()
-    except Exception as error:
+    except (Exception, SystemExit) as error:
         raise MethodError(name, f"entry point {entry_point.value}"
                                 f"{_distribution_text(entry_point)} cannot be loaded "
                                 f"({_one_line(error)})") from None
@@ -194,7 +195,8 @@ class PluginStabilizer:
         if inspect.isclass(target):
             try:
                 self._estimate = target(self.reference, **params).estimate
-            except Exception as error:  # a plugin's bug fails its frames, not the run
+            # A plugin's bug (a sys.exit() too) fails its frames, not the run.
+            except (Exception, SystemExit) as error:
                 self._failure = Motion.failed(f"exception:{type(error).__name__}",
                                               message=str(error), stage="reference")
         else:

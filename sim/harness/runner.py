@@ -144,7 +144,8 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     start = time.perf_counter()
     try:
         motion = stabilizer.estimate(current)
-    except Exception as error:  # a method's bug must not take the other methods' run down
+    # A method's bug, or a plugin's sys.exit(), must not take the other methods' run down.
+    except (Exception, SystemExit) as error:
         motion = Motion.failed(f"exception:{type(error).__name__}", message=str(error))
     return motion, 1e3 * (time.perf_counter() - start)
 
@@ -445,7 +446,7 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
                         last_write = time.perf_counter()
         except KeyboardInterrupt as interrupt:
             scoring.status, scoring.message = INTERRUPTED, interrupt_reason(interrupt)
-        except Exception as error:
+        except BaseException as error:  # SystemExit too: the folder must not say "complete"
             scoring.status, scoring.message = ERROR, f"{type(error).__name__}: {error}"
             raise
         finally:

@@ -5,6 +5,7 @@ way a method can go wrong; tests refer to them by import path
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
@@ -45,6 +46,20 @@ def reported_failure(reference: np.ndarray, current: np.ndarray) -> Motion:
 
 def raising(reference: np.ndarray, current: np.ndarray) -> Motion:
     raise ValueError("this method always fails")
+
+
+def exits(reference: np.ndarray, current: np.ndarray) -> Motion:
+    sys.exit("a library that ends the program")
+
+
+class ExitsOnReference:
+    """Its constructor calls sys.exit(): every frame against that reference fails."""
+
+    def __init__(self, reference: np.ndarray):
+        sys.exit(3)
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        return Motion(*FIXED)
 
 
 def nan_motion(reference: np.ndarray, current: np.ndarray) -> Motion:

@@ -71,6 +71,8 @@ def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
     ("wrong_value_type", "wrong_type:str"),
     ("writes_its_input", "exception:ValueError"),
     ("FailsOnReference", "exception:RuntimeError"),
+    ("exits", "exception:SystemExit"),
+    ("ExitsOnReference", "exception:SystemExit"),
     ("reported_failure", "no_structure"),
 ])
 def test_a_misbehaving_method_fails_the_frame_with_the_reason(frames, name, status):

@@ -139,6 +139,27 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
 
 
+def test_a_run_ended_by_systemexit_says_error_not_complete(folders, tmp_path, monkeypatch):
+    import sim.harness.ground_truth
+
+    real, calls = sim.harness.ground_truth.ground_truth, []
+
+    def exiting(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise SystemExit("something called sys.exit()")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sim.harness.ground_truth, "ground_truth", exiting)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit):
+        score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                          methods=("ecc",), record=False, workers=1))
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "error" and "SystemExit" in metrics["run"]["message"]
+    assert len(_rows(out)) == 2
+
+
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())
