@@ -115,11 +115,14 @@ def _sequence_name(sequence: Path) -> str:
 def _cmd_score(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.report import terminal_summary
-    from sim.harness.score import ScoreConfig, estimates_by_name, score
+    from sim.harness.score import ScoreConfig, estimates_by_name, read_estimates, score
     from sim.harness.sequence import load_sequence
 
     estimates = estimates_by_name(args.estimates)
-    sequence = load_sequence(args.sequence)  # a bad sequence is reported before any folder is made
+    # A bad sequence or estimates file is reported before any folder is made.
+    sequence = load_sequence(args.sequence)
+    for path in estimates.values():
+        read_estimates(Path(path), sequence.n_frames)
     out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
     if out.resolve() == sequence.path.resolve():
         raise ValueError(f"--out {out}: is the sequence folder; accepted: a folder of its own "

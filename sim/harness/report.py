@@ -77,10 +77,21 @@ def format_number(value: float | None, digits: int = 2) -> str:
     return f"{value:.{digits}f}"
 
 
+#: Characters a Markdown table cell cannot hold as they are.
+CONTROL_CHARACTERS = re.compile(r"[\x00-\x1f\x7f]")
+
+
 def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines += ["| " + " | ".join(_table_cell(cell) for cell in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+def _table_cell(text: str) -> str:
+    """``text`` as one Markdown table cell: '|' escaped, line breaks and other control
+    characters as spaces (a failure status or a name from another program may hold them)."""
+    return CONTROL_CHARACTERS.sub(" ", text).replace("|", "\\|")
+
 
 
 def table_one(scores: Mapping[str, MethodScore]) -> str:

@@ -170,12 +170,17 @@ def read_estimates(path: Path, n_frames: int) -> dict:
     """Frame -> Motion of an estimates file; a bad row is refused with its line number."""
     from sim.harness.validation import FileValueError
 
+    import csv
+
     try:
         return _read_estimates(path, n_frames)
     except UnicodeDecodeError as error:
         raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at byte "
                              f"{error.start})", "a UTF-8 CSV file (a byte-order mark is "
                              "allowed)") from None
+    except csv.Error as error:  # a field beyond the csv module's size limit, say
+        raise FileValueError(str(path), "row", f"is not CSV ({error})",
+                             "rows of frame, angle_deg, dx, dy and optionally status") from None
 
 
 def _read_estimates(path: Path, n_frames: int) -> dict:
@@ -206,7 +211,7 @@ def _read_estimates(path: Path, n_frames: int) -> dict:
                                          "a number") from None
 
             text = (cells.get("frame") or "").strip()
-            if not text.isdigit():
+            if not (text.isascii() and text.isdigit()):
                 raise FileValueError(where, "frame", f"{text!r} is not a frame number",
                                      f"an integer from 0 to {n_frames - 1}")
             frame = int(text)

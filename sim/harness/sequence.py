@@ -24,7 +24,7 @@ from typing import Any, Mapping, Sequence as SequenceOf
 import numpy as np
 
 from sim.harness.atomic import atomic_path, write_text_atomic
-from sim.harness.validation import FileValueError
+from sim.harness.validation import FileValueError, is_finite_number, is_int
 from sim.world.camera import CameraIntrinsics, Frame
 from stabilizer import depth_to_disparity
 
@@ -284,19 +284,26 @@ class LoadedSequence:
 
 
 def _parse_row(cells: dict[str, str], source: str, line: int) -> TruthRow:
-    def number(name: str, kind=float):
+    def number(name: str, kind=float, finite: bool = True):
+        """The cell as ``kind``; NaN is allowed only where ``finite`` is False (the truth of a
+        frame without one)."""
         try:
-            return kind(cells[name])
+            value = kind(cells[name])
         except (TypeError, ValueError):
             raise FileValueError(f"{source}:{line}", name, f"{cells[name]!r} is not a number",
                                  "a number") from None
+        if finite and not math.isfinite(value):
+            raise FileValueError(f"{source}:{line}", name, f"{cells[name]!r} is not finite",
+                                 "a finite number")
+        return value
 
     rotation = [number(name) for name in ROTATION_COLUMNS]
     return TruthRow(
         frame=number("frame", int), time_s=number("time_s"),
         reference_frame=number("reference_frame", int), gait_cycle=number("gait_cycle", int),
-        angle_deg=number("angle_deg"), dx=number("dx"), dy=number("dy"),
-        truth_status=cells["truth_status"], truth_residual_px=number("truth_residual_px"),
+        angle_deg=number("angle_deg", finite=False), dx=number("dx", finite=False),
+        dy=number("dy", finite=False), truth_status=cells["truth_status"],
+        truth_residual_px=number("truth_residual_px", finite=False),
         truth_points=number("truth_points", int),
         cam_pos=tuple(number(name) for name in ("tx", "ty", "tz")),
         cam_mat=tuple(tuple(rotation[3 * r:3 * r + 3]) for r in range(3)),
@@ -319,6 +326,9 @@ def read_truth_csv(path: Path, n_frames: int) -> list[TruthRow]:
         except UnicodeDecodeError as error:
             raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at "
                                  f"byte {error.start})", "a UTF-8 CSV file") from None
+        except csv.Error as error:  # a field beyond the csv module's size limit, say
+            raise FileValueError(f"{path}:{reader.line_num}", "row", f"is not CSV ({error})",
+                                 "the rows egostab record writes") from None
     for position, row in enumerate(rows):
         where = f"{path}:{position + 2}"
         if row.frame != position:
@@ -332,6 +342,49 @@ def read_truth_csv(path: Path, n_frames: int) -> list[TruthRow]:
         raise FileValueError(str(path), "rows", f"has {len(rows)} frame(s)",
                              f"one row per frame: sequence.json says {n_frames}")
     return rows
+
+
+def _checked_header(header: dict, source: str) -> tuple[int, CameraIntrinsics,
+                                                         RecordedFall | None]:
+    """The frame count, intrinsics and fall of sequence.json's content, each key checked."""
+    def check(ok: bool, key: str, value: Any, allowed: str) -> None:
+        if not ok:
+            raise FileValueError(source, key, "is missing" if value is _MISSING
+                                 else f"is {value!r}", allowed)
+
+    frames = header.get("frames", _MISSING)
+    check(is_int(frames) and frames >= 0, "frames", frames, "an integer >= 0")
+    intrinsics = header.get("intrinsics", _MISSING)
+    check(isinstance(intrinsics, dict), "intrinsics", intrinsics,
+          "an object with width, height, fx, fy, cx and cy")
+    for key in ("width", "height"):
+        value = intrinsics.get(key, _MISSING)
+        check(is_int(value) and value > 0, f"intrinsics.{key}", value, "an integer > 0")
+    for key in ("fx", "fy", "cx", "cy"):
+        value = intrinsics.get(key, _MISSING)
+        check(is_finite_number(value) and (key in ("cx", "cy") or value > 0),
+              f"intrinsics.{key}", value,
+              "a finite number" if key in ("cx", "cy") else "a finite number > 0")
+    scenario = header.get("scenario", _MISSING)
+    check(isinstance(scenario, dict), "scenario", scenario, "an object: the resolved scenario")
+    unit = header.get("depth_unit_m", _MISSING)
+    check(unit in DEPTH_UNITS_M, "depth_unit_m", unit, f"one of {DEPTH_UNITS_M}")
+    unit = header.get("exact_depth_unit_m", _MISSING)
+    check(unit == EXACT_DEPTH_UNIT_M, "exact_depth_unit_m", unit, f"{EXACT_DEPTH_UNIT_M}")
+    sim_time_s = header.get("sim_time_s")
+    check(sim_time_s is None or (is_finite_number(sim_time_s) and sim_time_s >= 0),
+          "sim_time_s", sim_time_s, "null or a finite number >= 0 (seconds)")
+    fall = header.get("fall")
+    check(fall is None or (isinstance(fall, dict) and is_finite_number(fall.get("time_s"))
+                           and isinstance(fall.get("reason"), str)),
+          "fall", fall, 'null or an object {"time_s": seconds, "reason": text}')
+    return (frames, CameraIntrinsics(**{key: intrinsics[key] for key in
+                                        ("width", "height", "fx", "fy", "cx", "cy")}),
+            None if fall is None else RecordedFall(float(fall["time_s"]), fall["reason"]))
+
+
+#: A key sequence.json lacks (None is a value: JSON's null).
+_MISSING = object()
 
 
 def load_sequence(path: str | Path) -> LoadedSequence:
@@ -363,22 +416,8 @@ def load_sequence(path: str | Path) -> LoadedSequence:
         raise FileValueError(str(json_path), "ended", f"is {header.get('ended')!r}: the "
                              "recording did not finish", f"one of {', '.join(ENDINGS)}; "
                              "record the sequence again")
-    try:
-        n_frames = int(header["frames"])
-        intrinsics = CameraIntrinsics(**{key: header["intrinsics"][key] for key in
-                                         ("width", "height", "fx", "fy", "cx", "cy")})
-        scenario, fall = header["scenario"], header.get("fall")
-        fall = None if fall is None else RecordedFall(float(fall["time_s"]), str(fall["reason"]))
-        if header["depth_unit_m"] not in DEPTH_UNITS_M \
-                or header["exact_depth_unit_m"] != EXACT_DEPTH_UNIT_M:
-            raise FileValueError(str(json_path), "depth_unit_m",
-                                 f"is {header['depth_unit_m']!r} / "
-                                 f"{header['exact_depth_unit_m']!r}",
-                                 f"depth_unit_m one of {DEPTH_UNITS_M}, exact_depth_unit_m "
-                                 f"{EXACT_DEPTH_UNIT_M}")
-    except (KeyError, TypeError, ValueError) as error:
-        raise FileValueError(str(json_path), "content", f"lacks or mangles {error}",
-                             "the keys of docs/sequence-format.md") from None
+    n_frames, intrinsics, fall = _checked_header(header, str(json_path))
+    scenario = header["scenario"]
     rows = read_truth_csv(folder / TRUTH_CSV, n_frames)
     for index in range(n_frames):
         for sub in (DEPTH_DIR, EXACT_DIR):

@@ -11,8 +11,8 @@ import pytest
 from sim.harness.atomic import atomic_path, write_text_atomic
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
-from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, read_metrics, score_rows,
-                                table_one, terminal_summary, write_run_outputs)
+from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, markdown_table, read_metrics,
+                                score_rows, table_one, terminal_summary, write_run_outputs)
 from dataclasses import replace
 
 from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
@@ -283,3 +283,11 @@ def test_equal_errors_still_plot(run, tmp_path):
                 for i, record in enumerate(records)]
     path = plot_error_histograms(tmp_path / "h.png", constant, [records[0].method])
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_table_cell_from_another_program_stays_one_cell():
+    # Failure statuses and method names may come from estimates files and plugins.
+    table = markdown_table(("Method", "Reasons"), [("mine|v2", "lost\ntrack 3, a|b 1")])
+    header, rule, row = table.splitlines()
+    assert row == "| mine\\|v2 | lost track 3, a\\|b 1 |"
+    assert row.replace("\\|", "").count("|") == header.count("|")

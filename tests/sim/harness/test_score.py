@@ -196,6 +196,8 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     ("frame,angle_deg,dx,dy\nfirst,0,0,0\n", 2, "frame"),
     ("frame,angle_deg,dx,dy\n0,0,nan,0\n", 2, "dx"),
     ("frame,angle_deg,dx,dy\n0,0,0,0\n".encode("utf-16"), "", "encoding"),
+    ("frame,angle_deg,dx,dy\n\u00b2,0,0,0\n", 2, "frame"),
+    ("frame,angle_deg,dx,dy,status\n0,0,0,0," + "x" * 200_000 + "\n", "", "row"),
 ])
 def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text, line, column):
     path = tmp_path / "bad.csv"
@@ -206,7 +208,7 @@ def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text
     err = capsys.readouterr().err.strip()
     where = f"{path}:{line}" if line else str(path)
     assert f"{where}: {column}" in err and "\n" not in err
-    assert not (out / "metrics.json").exists()
+    assert not out.exists()  # refused before the run folder is made
 
 
 def test_a_recording_that_ended_with_a_fall_scores_as_the_run_that_fell(tmp_path, monkeypatch):
