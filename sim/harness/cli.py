@@ -20,6 +20,7 @@ from pathlib import Path
 
 from scenarios import DEFAULT_SCENARIO
 from sim.harness.suite.command import add_suite_parser
+from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
 
 #: Where runs write unless told otherwise: results/<scenario name>/.
 DEFAULT_RESULTS = Path("results")
@@ -54,10 +55,6 @@ def _method_list(text: str) -> tuple[str, ...]:
     return available_methods() if text == "all" else _methods(text)
 
 
-def _positive_integer(text: str) -> int:
-    if not text.strip().isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: accepted: an integer >= 1")
-    return int(text)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -124,9 +121,9 @@ def _cmd_score(args: argparse.Namespace) -> int:
     for path in estimates.values():
         read_estimates(Path(path), sequence.n_frames)
     out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
-    if out.resolve() == sequence.path.resolve():
-        raise ValueError(f"--out {out}: is the sequence folder; accepted: a folder of its own "
-                         f"for the run (default results/<sequence name>)")
+    if out.resolve().is_relative_to(sequence.path.resolve()):
+        raise ValueError(f"--out {out}: is in the sequence folder; accepted: a folder of its "
+                         f"own for the run (default results/<sequence name>)")
     out_dir = prepare_output_dir(out)
     metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
                                 methods=args.methods, estimates=estimates,
@@ -201,6 +198,9 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
     prepare_output_dir(args.out)
     if args.update_baseline:
+        if args.baseline.is_dir():
+            raise ValueError(f"--baseline {args.baseline}: is a folder; accepted: the path of "
+                             f"a JSON file (written at the end)")
         prepare_output_dir(args.baseline.parent or Path("."), option="--baseline's folder")
     return run_gate(baseline_path=args.baseline, update=args.update_baseline,
                     out_dir=args.out)
@@ -220,9 +220,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
     """The options of the commands that simulate a scenario (run, record)."""
     parser.add_argument("--out", type=Path, default=None, help=out_help)
-    parser.add_argument("--max-frames", type=_positive_integer, default=None,
+    parser.add_argument("--max-frames", type=POSITIVE_INTEGER, default=None,
                         help="stop after N frames")
-    parser.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    parser.add_argument("--seed", type=integer_option(0, MAX_SEED), default=None,
+                        help="override the scenario's seed")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -242,7 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "built-in ones (default: the scenario's)")
     _add_simulation_arguments(run, "run folder (default: results/<scenario>)")
     run.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
-    run.add_argument("--workers", type=_positive_integer, default=None,
+    run.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
                      help="processes running the methods beside the simulation, one thread "
                           "each; 1: the methods run in this process (default: one per method "
                           "and core when more than one method runs, else 1)")
@@ -270,7 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
     scorer.add_argument("--out", type=Path, default=None,
                         help="run folder (default: results/<sequence folder name>; for a "
                              "suite's runs/<name>/sequence, results/<name>)")
-    scorer.add_argument("--workers", type=_positive_integer, default=None,
+    scorer.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
                         help="processes running the methods, one thread each; 1: this "
                              "process (default: one per core)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
@@ -284,7 +285,8 @@ def build_parser() -> argparse.ArgumentParser:
     ideal.add_argument("--trajectory", default="paper_cycle",
                        help="'paper_cycle' (default: one gait cycle of the paper's magnitudes) "
                             "or a frames.csv of a walking run (its ground truth is replayed)")
-    ideal.add_argument("--frames", type=int, default=30, help="frames per cycle (default 30)")
+    ideal.add_argument("--frames", type=integer_option(2), default=30,
+                       help="frames per cycle (default 30)")
     ideal.add_argument("--methods", type=_method_list, default=None,
                        help="comma-separated methods (built-in, entry point or "
                             "package.module:Name; see `egostab methods`), or 'all' (default: "
@@ -330,7 +332,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", type=Path, default=None,
                        help="sweep folder (default: results/sweeps/<name>; resumable: complete "
                             "runs are skipped)")
-    sweep.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    sweep.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
+                       help="local processes (default: cores)")
     sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     sweep.add_argument("--ray-address", default=None,
                        help="Ray address ('auto' = running cluster; default: start a local one)")

@@ -76,13 +76,32 @@ def paper_cycle(n_frames: int = 30) -> list[Motion]:
 
 def trajectory_from_run(frames_csv: str | Path) -> list[Motion]:
     """The ground-truth motions of a walking run's frames.csv, one per frame, in order."""
+    from sim.harness.validation import FileValueError
+
+    columns = ("frame_index", "truth_status", "true_angle_deg", "true_dx_px", "true_dy_px")
     motions: dict[int, Motion] = {}
-    with open(frames_csv, newline="", encoding="utf-8") as handle:
-        for row in csv.DictReader(handle):
-            if row.get("truth_status") != "ok":
-                continue
-            motions.setdefault(int(row["frame_index"]), Motion(
-                float(row["true_angle_deg"]), float(row["true_dx_px"]), float(row["true_dy_px"])))
+    try:
+        with open(frames_csv, newline="", encoding="utf-8-sig") as handle:
+            reader = csv.DictReader(handle)
+            missing = [name for name in columns if name not in (reader.fieldnames or ())]
+            if missing:
+                raise FileValueError(str(frames_csv), "header",
+                                     f"lacks column(s) {', '.join(missing)}",
+                                     "the frames.csv of a walking run")
+            for line, row in enumerate(reader, start=2):
+                if row["truth_status"] != "ok":
+                    continue
+                try:
+                    index = int(row["frame_index"])
+                    values = [float(row[name]) for name in columns[2:]]
+                except (TypeError, ValueError):
+                    raise FileValueError(f"{frames_csv}:{line}", "row", "holds a value that is "
+                                         "not a number", "the frames.csv of a walking run"
+                                         ) from None
+                motions.setdefault(index, Motion(*values))
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise FileValueError(str(frames_csv), "content", f"is not a CSV table ({error})",
+                             "the frames.csv of a walking run (UTF-8)") from None
     if not motions:
         raise ValueError(f"{frames_csv}: no frame with a ground truth (truth_status ok); "
                          "give the frames.csv of a walking run")

@@ -428,6 +428,13 @@ def read_metrics(run: str | Path) -> dict:
     if not isinstance(document["summary"].get("run"), dict):
         raise ValueError(f"{path}: 'summary.run' is missing or not a dict; expected the "
                          f"{METRICS_JSON} a run writes")
+    for method, figures in document["summary"]["run"].items():
+        try:
+            MethodScore.from_dict(figures)
+        except (TypeError, ValueError, KeyError, AttributeError) as error:
+            raise ValueError(f"{path}: 'summary.run.{method}' is not a method's figures "
+                             f"({type(error).__name__}: {error}); expected the {METRICS_JSON} "
+                             f"a run writes") from None
     return document
 
 

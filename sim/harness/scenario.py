@@ -74,7 +74,8 @@ from sim.world.scenes import SCENES, Floor, SceneParameterError, scene_layout
 from sim.world.scenes.floor import FLOOR_BOUNDS
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
 from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
-from sim.harness.validation import FileValueError, is_finite_number, is_int, read_toml
+from sim.harness.validation import (MAX_SEED, FileValueError, is_finite_number, is_int,
+                                   read_toml)
 from stabilizer.api import available_methods
 
 REFERENCE_POLICIES = ("cycle_start", "previous", "first")
@@ -211,11 +212,11 @@ class Scenario:
     name: str = _key("", "a name (default: the file's stem)")
     description: str = _key("", "free text")
     scene: str = _key("corridor", f"one of {', '.join(SCENES)}", lambda v: v in SCENES)
-    scene_seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
+    scene_seed: int = _key(0, "an integer from 0 to 2**63 - 1", lambda v: 0 <= v <= MAX_SEED)
     scene_params: dict = _key(dict, "a table [scene_params] of the scene's parameters "
                               "(docs/scenes.md); resolved, it lists every parameter")
     floor: FloorSpec = _key(FloorSpec, "a table [floor]")
-    seed: int = _key(0, "an integer >= 0", lambda v: v >= 0)
+    seed: int = _key(0, "an integer from 0 to 2**63 - 1", lambda v: 0 <= v <= MAX_SEED)
     duration_s: float = _key(20.0, f"0 < duration_s <= {MAX_DURATION_S:g}",
                              lambda v: 0 < v <= MAX_DURATION_S)
     commands: tuple = _key(lambda: (Command(),), "an array of tables [[commands]] with t, "

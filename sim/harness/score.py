@@ -266,7 +266,7 @@ def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
     from sim.harness.pipeline import PooledMethod
     from sim.harness.runner import MethodEstimation
 
-    if workers == 1 or not methods:
+    if workers == 1 or not methods or not sequence.n_frames:
         yield {method: MethodEstimation(method) for method in methods}, None
         return
     pool = _EstimationPool(sequence, methods, workers, keep_images)

@@ -8,6 +8,7 @@ acceptable; ``distinct_list`` checks a list item by item and raises the error it
 
 from __future__ import annotations
 
+import argparse
 import math
 import re
 import tomllib
@@ -81,3 +82,27 @@ def read_toml(path: Path, error: type[FileValueError] = FileValueError) -> dict:
         raise error(str(path), "(file)", f"not valid TOML ({problem})", "TOML 1.0") from None
     except UnicodeDecodeError:
         raise error(str(path), "(file)", "not UTF-8 text", "a TOML 1.0 file") from None
+
+
+def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type``: an integer of at least ``least`` (and at most ``most``); anything
+    else is refused with the text given and what is accepted."""
+    accepted = (f"an integer >= {least}" if most is None
+                else f"an integer from {least} to {most}")
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < least or (most is not None and value > most):
+            raise argparse.ArgumentTypeError(f"{text!r}: accepted: {accepted}")
+        return value
+
+    return parse
+
+
+#: The ``type`` of an option that counts something: workers, frames.
+POSITIVE_INTEGER = integer_option(1)
+#: The largest seed: seeds are stored and logged as signed 64-bit integers.
+MAX_SEED = 2**63 - 1

@@ -6,6 +6,8 @@ import argparse
 import functools
 from pathlib import Path
 
+from sim.harness.validation import POSITIVE_INTEGER
+
 
 def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
     """Add the ``suite`` subcommand to ``commands`` (an argparse subparsers object); suites
@@ -17,7 +19,7 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
     suite.add_argument("--out", type=Path, default=None,
                        help="suite folder (default: results/suites/<name>; resumable: complete "
                             "runs are skipped)")
-    suite.add_argument("--workers", type=int, default=None,
+    suite.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
                        help="runs at a time (default: every core)")
     suite.add_argument("--estimates", type=_estimates, action="append", default=None,
                        metavar="NAME=PATH",

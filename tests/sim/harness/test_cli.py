@@ -160,6 +160,8 @@ def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
 
 @pytest.mark.parametrize("command, option", [(["run"], "--workers"),
                                              (["score", "no_sequence"], "--workers"),
+                                             (["sweep", "no_sweep.toml"], "--workers"),
+                                             (["suite", "no_suite.toml"], "--workers"),
                                              (["run"], "--max-frames"),
                                              (["record"], "--max-frames")])
 @pytest.mark.parametrize("count", ["0", "-2", "two"])
@@ -168,6 +170,29 @@ def test_a_bad_count_is_refused(command, option, count, capsys):
         main([*command, option, count])
     assert exit_info.value.code == 2
     assert f"{option}: {count!r}: accepted: an integer >= 1" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("arguments, accepted", [
+    (["run", "--seed", "-1"], "an integer from 0 to 9223372036854775807"),
+    (["record", "--seed", str(2**63)], "an integer from 0 to 9223372036854775807"),
+    (["ideal", "corridor", "--frames", "1"], "an integer >= 2"),
+])
+def test_a_bad_option_value_is_refused_by_the_option(arguments, accepted, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(arguments)
+    assert exit_info.value.code == 2
+    assert f"{arguments[-2]}: {arguments[-1]!r}: accepted: {accepted}" in capsys.readouterr().err
+
+
+def test_a_baseline_that_is_a_folder_is_refused_before_the_gate_runs(tmp_path, capsys,
+                                                                      monkeypatch):
+    import sim.harness.gate
+
+    monkeypatch.setattr(sim.harness.gate, "run_gate",
+                        lambda **kwargs: pytest.fail("the gate ran"))
+    assert main(["gate", "--update-baseline", "--baseline", str(tmp_path),
+                 "--out", str(tmp_path / "gate")]) == 2
+    assert "is a folder" in _one_line_error(capsys, "gate")
 
 
 def test_a_method_given_twice_is_refused(capsys):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sim.harness.ideal import IdealConfig, load_trajectory, paper_cycle, run_ideal, trajectory_from_run
+from sim.harness.validation import FileValueError
 from stabilizer import depth_to_disparity
 from stabilizer.testing import make_depth_scene
 
@@ -37,6 +38,19 @@ def test_run_ideal_replays_a_walking_runs_truth(tmp_path):
                                    methods=("t2fuzzy",)))
     errors = lambda metrics: metrics["summary"]["run"]["t2fuzzy"]["errors"]  # noqa: E731
     assert errors(replay) == errors(first)
+
+
+def test_a_trajectory_saved_again_by_a_spreadsheet_replays_the_same(tmp_path):
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "a"), methods=("ecc",),
+                          n_frames=4))
+    text = (tmp_path / "a" / "frames.csv").read_text()
+    (tmp_path / "saved.csv").write_bytes(text.replace("\n", "\r\n").encode("utf-8-sig"))
+    assert trajectory_from_run(tmp_path / "saved.csv") == \
+        trajectory_from_run(tmp_path / "a" / "frames.csv")
+    (tmp_path / "cut.csv").write_text(text.replace("true_dx_px", "dx_true"))
+    with pytest.raises(FileValueError, match="cut.csv: header: lacks column"):
+        trajectory_from_run(tmp_path / "cut.csv")
 
 
 def test_paper_method_is_accurate_in_the_ideal_case(tmp_path):

@@ -213,6 +213,17 @@ def test_aggregate_rejects_folders_without_metrics(tmp_path):
         read_metrics(tmp_path)
 
 
+@pytest.mark.parametrize("figures", [5, None, "x", {"errors": None}])
+def test_a_metrics_file_with_mangled_figures_is_named(run, tmp_path, figures):
+    document = read_metrics(run[0])
+    method = next(iter(document["summary"]["run"]))
+    document["summary"]["run"][method] = figures
+    (tmp_path / "metrics.json").write_text(json.dumps(document))
+    with pytest.raises(ValueError, match=f"metrics.json: 'summary.run.{method}' is not a "
+                                         f"method's figures"):
+        aggregate_runs([tmp_path])
+
+
 @pytest.mark.parametrize("content, missing", [
     ({}, "'status'"), ({"status": "complete", "scenario": {}, "run": {}}, "'summary'"),
     ({"status": "complete", "scenario": {}, "run": {}, "summary": {}}, "'summary.run'"),

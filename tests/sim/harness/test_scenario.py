@@ -114,6 +114,8 @@ frame_stride = 3
     ('scene = "lab"\nduration_s = -1.0\n', "duration_s", "0 < duration_s"),
     ('scene = "lab"\nscene_seed = 1.5\n', "scene_seed", "integer"),
     ('scene = "lab"\nseed = true\n', "seed", "integer"),
+    ('scene = "lab"\nseed = 9223372036854775808\n', "seed", "2**63 - 1"),
+    ('scene = "lab"\nscene_seed = -1\n', "scene_seed", "2**63 - 1"),
     ('scene = "lab"\n[sensor]\nfps = 60\n', "sensor.fps", "54"),
     ('scene = "lab"\n[sensor]\npreset = "kinect"\n', "sensor.preset", "noiseless"),
     ('scene = "lab"\n[sensor]\ngain = 2\n', "sensor.gain", "keys preset"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 
 import pytest
 
@@ -160,13 +161,26 @@ def test_a_run_ended_by_systemexit_says_error_not_complete(folders, tmp_path, mo
     assert len(_rows(out)) == 2
 
 
+def test_a_sequence_without_frames_scores_as_an_empty_run_with_workers(folders, tmp_path):
+    empty = tmp_path / "empty"
+    shutil.copytree(folders / "sequence", empty)
+    header = json.loads((empty / "sequence.json").read_text())
+    (empty / "sequence.json").write_text(json.dumps({**header, "frames": 0}))
+    truth = (empty / "truth.csv").read_text().splitlines()
+    (empty / "truth.csv").write_text(truth[0] + "\n")
+    metrics = score(ScoreConfig(sequence=str(empty), out_dir=str(tmp_path / "out"),
+                                methods=("ecc",), record=False, workers=2))
+    assert metrics["status"] == "complete" and metrics["summary"]["n_frames"] == 0
+
+
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())
-    assert main(["score", str(sequence / "depth" / ".."), "--methods", "ecc",
-                 "--out", str(sequence), "--quiet"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "is the sequence folder" in err and "\n" not in err
+    for out in (sequence, sequence / "depth", sequence / "runs" / "mine"):
+        assert main(["score", str(sequence / "depth" / ".."), "--methods", "ecc",
+                     "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "is in the sequence folder" in err and "\n" not in err
     assert sorted(path.name for path in sequence.iterdir()) == before
 
 
