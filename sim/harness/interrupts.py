@@ -17,6 +17,7 @@ from contextlib import contextmanager
 
 #: The signals that stop a job like Ctrl-C does.
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+STOP_SIGNAL_NAMES = tuple(number.name for number in STOP_SIGNALS)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -27,14 +28,24 @@ class Interrupted(KeyboardInterrupt):
         self.signal_name = signal_name
 
 
+#: The names of the stop signals received within :func:`stop_signals_interrupt`, in order.
+_received: list[str] = []
+
+
 def interrupt_reason(interrupt: KeyboardInterrupt) -> str:
-    """One line saying what stopped the job: Ctrl-C, or the signal's name."""
+    """One line saying what stopped the job: Ctrl-C, or the signal's name. A library may raise
+    the interrupt again with a message of its own (MuJoCo's model compiler does, or drops the
+    signal's name): the last stop signal received then names it."""
     name = getattr(interrupt, "signal_name", None)
+    if name not in STOP_SIGNAL_NAMES:
+        name = _received[-1] if _received else None
     return f"interrupted by {name}" if name else "interrupted by the user (Ctrl-C)"
 
 
 def _raise_interrupted(signum: int, frame) -> None:
-    raise Interrupted(signal.Signals(signum).name)
+    name = signal.Signals(signum).name
+    _received.append(name)
+    raise Interrupted(name)
 
 
 @contextmanager
@@ -46,6 +57,7 @@ def stop_signals_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    _received.clear()
     previous = {number: signal.signal(number, _raise_interrupted) for number in STOP_SIGNALS}
     try:
         yield

@@ -20,13 +20,25 @@ CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 def test_a_stop_signal_raises_interrupted_inside_the_block_only():
     previous = signal.getsignal(signal.SIGTERM)
     with stop_signals_interrupt():
+        assert interrupt_reason(KeyboardInterrupt()) == "interrupted by the user (Ctrl-C)"
         with pytest.raises(Interrupted) as raised:
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(1)  # the handler runs before this returns
     assert isinstance(raised.value, KeyboardInterrupt)
     assert interrupt_reason(raised.value) == "interrupted by SIGTERM"
-    assert interrupt_reason(KeyboardInterrupt()) == "interrupted by the user (Ctrl-C)"
     assert signal.getsignal(signal.SIGTERM) is previous
+
+
+def test_a_signal_raised_again_by_a_library_is_still_named():
+    # MuJoCo's model compiler re-raises an interrupt in its callbacks with a message of its own,
+    # or as a plain KeyboardInterrupt.
+    with stop_signals_interrupt():
+        with pytest.raises(Interrupted):
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(1)
+        for again in (Interrupted("Line 47: error while parsing element <default>: SIGHUP"),
+                      KeyboardInterrupt()):
+            assert interrupt_reason(again) == "interrupted by SIGHUP"
 
 
 def _wait_for(predicate, timeout_s: float) -> None:
