@@ -95,12 +95,17 @@ class Stabilizer:
     Raises:
         ValueError: an unknown method, a frame of the wrong type, dimensions or size (the
             message names the size and the accepted range), or a bad parameter value.
+        TypeError: an unknown parameter, or one of the wrong type (a number where the method
+            takes a parameter object, say).
     """
 
     def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", *,
                  verification: VerificationParams | None = VerificationParams(),
                  **params: Any):
         estimator_class = _estimator_class(method)
+        if verification is not None and not isinstance(verification, VerificationParams):
+            raise TypeError(f"verification must be a VerificationParams "
+                             f"(stabilizer.verification) or None; got {verification!r}")
         params = {**_METHODS[method][1], **params}
         self.method = method
         self.reference = as_disparity(reference, "reference",

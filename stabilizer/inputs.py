@@ -8,6 +8,10 @@ gives it, is converted by :func:`depth_to_disparity` (docs/method.md, section 0)
 
 from __future__ import annotations
 
+import math
+import numbers
+from typing import Any
+
 import numpy as np
 
 #: Depth (m) that maps to gray level 255: the SR4000's near limit of calibrated range.
@@ -144,3 +148,36 @@ def _check_shapes(reference_shape: tuple[int, ...], current_shape: tuple[int, ..
             f"reference and current frames must have the same shape; "
             f"got {tuple(reference_shape)} and {tuple(current_shape)}"
         )
+
+
+def check_integer(name: str, value: Any, least: int, most: int | None = None) -> None:
+    """ValueError naming ``name`` unless ``value`` is an integer (not a bool) in
+    [``least``, ``most``]."""
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+            and least <= value and (most is None or value <= most)):
+        accepted = f">= {least}" if most is None else f"from {least} to {most}"
+        raise ValueError(f"{name} must be an integer {accepted}; got {value!r}")
+
+
+def check_number(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *,
+                 open_low: bool = False, open_high: bool = False) -> None:
+    """ValueError naming ``name`` unless ``value`` is a finite real number (not a bool) in the
+    interval from ``low`` to ``high``, each end included unless ``open_low``/``open_high``."""
+    inside = (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+              and math.isfinite(value)
+              and (value > low if open_low else value >= low)
+              and (value < high if open_high else value <= high))
+    if not inside:
+        interval = (f"{'(' if open_low or low == -math.inf else '['}{low:g}, "
+                    f"{high:g}{')' if open_high or high == math.inf else ']'}")
+        raise ValueError(f"{name} must be a finite number in {interval}; got {value!r}")
+
+
+def check_angles(name: str, value: Any) -> None:
+    """ValueError naming ``name`` unless ``value`` is a non-empty sequence of finite angles
+    (degrees)."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or not len(value):
+        raise ValueError(f"{name} must be a non-empty sequence of angles in degrees; "
+                         f"got {value!r}")
+    for angle in value:
+        check_number(f"{name}[...]", angle)

@@ -82,6 +82,7 @@ from stabilizer.ellipse import (
 )
 from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.histogram_seeds import HistogramSeeds
+from stabilizer.inputs import check_integer, check_number
 from stabilizer.it2fcm import IT2FCM, LabelCleaner
 from stabilizer.motion import Motion
 from stabilizer.peers.preparation import clipped, robust_value_range
@@ -198,6 +199,11 @@ class ThresholdParams:
     bandwidth_deg: float = 1.0
     resolution_deg: float = 0.1
 
+    def __post_init__(self):
+        check_number("alpha", self.alpha, 1.0, 2.0, open_low=True)
+        check_number("bandwidth_deg", self.bandwidth_deg, 0.0, open_low=True)
+        check_number("resolution_deg", self.resolution_deg, 0.0, open_low=True)
+
 
 @dataclass(frozen=True)
 class TranslationParams:
@@ -218,8 +224,9 @@ class TranslationParams:
     min_ncc: float = 0.3
 
     def __post_init__(self):
-        if self.ncc_sigma < 0:
-            raise ValueError(f"ncc_sigma must be >= 0; got {self.ncc_sigma}")
+        check_integer("max_shift_px", self.max_shift_px, 0)
+        check_number("ncc_sigma", self.ncc_sigma, 0.0)
+        check_number("min_ncc", self.min_ncc)  # above 1: no peak is accepted
 
 
 @dataclass(frozen=True)
@@ -279,6 +286,22 @@ def match_objects(reference: FrameAnalysis, frame: FrameAnalysis,
     return pairs
 
 
+def _check_parameter_classes(**params: Any) -> None:
+    """TypeError naming the first of ``params`` that is unknown or not an instance of its
+    class."""
+    classes = {"segmentation": SegmentationParams, "features": FeatureParams,
+               "threshold": ThresholdParams, "translation": TranslationParams,
+               "refinements": Refinements}
+    for name, value in params.items():
+        expected = classes.get(name)
+        if expected is None:
+            raise TypeError(f"t2fuzzy has no parameter {name!r}; accepted: "
+                             f"{', '.join(classes)}")
+        if not isinstance(value, expected):
+            raise TypeError(f"{name} must be a {expected.__name__} "
+                             f"({expected.__module__}); got {value!r}")
+
+
 class T2FuzzyEstimator:
     """Kang, Zhang & Park (2009) motion estimator against a reference analysed once.
 
@@ -304,8 +327,8 @@ class T2FuzzyEstimator:
                  translation: TranslationParams = TranslationParams(),
                  refinements: Refinements = Refinements()):
         height, width = reference.shape
-        max_shift = int(translation.max_shift_px)
-        if not (0 <= max_shift and self.min_side(translation) <= min(height, width)):
+        if self.min_side(translation, segmentation=segmentation, features=features,
+                         threshold=threshold, refinements=refinements) > min(height, width):
             raise ValueError(f"max_shift_px must leave a template of at least 8 x 8 pixels in a "
                              f"{width} x {height} image; got {translation.max_shift_px}")
         # Stages 1-2.
@@ -337,10 +360,11 @@ class T2FuzzyEstimator:
                                                 min_spread=refinements.clip_min_spread)
                              if refinements.clip_sigmas > 0 else None)
         smoothed = self._smooth(reference)
-        self.template = RotatedTemplate(smoothed, max_shift, valid=self._reference_valid)
+        self.template = RotatedTemplate(smoothed, translation.max_shift_px,
+                                        valid=self._reference_valid)
         # Refinements.
         self.refinements = refinements
-        self.coarse_template = (half_resolution_template(smoothed, max_shift)
+        self.coarse_template = (half_resolution_template(smoothed, translation.max_shift_px)
                                 if refinements.needs_coarse_template else None)
         wide = (WideSearch(smoothed, self._reference_valid, refinements.wide_search_px,
                            refinements.wide_min_overlap)
@@ -355,11 +379,14 @@ class T2FuzzyEstimator:
         self._reference_analysis = self.analyse(reference)
 
     @staticmethod
-    def min_side(translation: TranslationParams = TranslationParams(), **_other: Any) -> int:
+    def min_side(translation: TranslationParams = TranslationParams(), **other: Any) -> int:
         """Smallest image side (pixels) with these parameters: the translation search takes
         ``max_shift_px`` from every side and must leave a template of at least 8 x 8 pixels,
-        so 2 * ``max_shift_px`` + 8 (96 with the default 44; docs/method.md, section 9)."""
-        return 2 * int(translation.max_shift_px) + TEMPLATE_MIN_SIDE
+        so 2 * ``max_shift_px`` + 8 (96 with the default 44; docs/method.md, section 9).
+        TypeError when a parameter is unknown or not of its class (asked first: before any
+        work)."""
+        _check_parameter_classes(translation=translation, **other)
+        return 2 * translation.max_shift_px + TEMPLATE_MIN_SIDE
 
     def analyse(self, image: np.ndarray, start: np.ndarray | None = None,
                 with_fits: bool = True) -> FrameAnalysis:

@@ -40,6 +40,7 @@ import math
 import cv2
 import numpy as np
 
+from stabilizer.inputs import check_integer, check_number
 from stabilizer.motion import Motion, motion_from_matrix, motion_matrix
 from stabilizer.peers.preparation import FramePreparation, frame_problem, peer_min_side
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
@@ -94,13 +95,15 @@ class EccEstimator:
                  min_correlation: float = 0.9,
                  start_angles_deg: tuple[float, ...] = START_ANGLES_DEG,
                  max_starts: int = 3, clip_sigmas: float = 1.5, clip_min_spread: float = 20.0):
-        if levels < 1 or iterations < 1:
-            raise ValueError(f"need levels >= 1 and iterations >= 1; got {levels}, {iterations}")
-        if gauss_filter_size < 1 or gauss_filter_size % 2 == 0:
+        check_integer("levels", levels, 1)
+        check_integer("iterations", iterations, 1)
+        check_number("epsilon", epsilon, 0.0, open_low=True)
+        check_integer("gauss_filter_size", gauss_filter_size, 1)
+        if gauss_filter_size % 2 == 0:
             raise ValueError(f"gauss_filter_size must be a positive odd integer; "
                              f"got {gauss_filter_size}")
-        if max_starts < 1:
-            raise ValueError(f"max_starts must be >= 1; got {max_starts}")
+        check_number("min_correlation", min_correlation, -1.0, 1.0)
+        check_integer("max_starts", max_starts, 1)
         self.levels = levels
         self.criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, iterations, epsilon)
         self.gauss_filter_size = gauss_filter_size

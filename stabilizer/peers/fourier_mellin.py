@@ -52,6 +52,7 @@ import math
 import cv2
 import numpy as np
 
+from stabilizer.inputs import check_integer, check_number
 from stabilizer.motion import Motion, compensate, rotation_matrix
 from stabilizer.peers.preparation import (
     FramePreparation,
@@ -60,6 +61,10 @@ from stabilizer.peers.preparation import (
     peer_min_side,
     zero_mean_float,
 )
+
+#: Most bins along either axis of the log-polar spectrum: OpenCV's remap, behind warpPolar,
+#: takes images of fewer than 32767 pixels a side, and 4096 bins resolve 0.09 degrees.
+MAX_BINS = 4096
 
 
 class FourierMellinEstimator:
@@ -106,9 +111,10 @@ class FourierMellinEstimator:
                  radius_bins: int = 128, min_response: float = 0.1,
                  min_overlap_correlation: float = 0.8, clip_sigmas: float = 1.5,
                  clip_min_spread: float = 10.0):
-        if angle_bins < 8 or radius_bins < 8:
-            raise ValueError(f"need angle_bins >= 8 and radius_bins >= 8; "
-                             f"got {angle_bins}, {radius_bins}")
+        check_integer("angle_bins", angle_bins, 8, MAX_BINS)
+        check_integer("radius_bins", radius_bins, 8, MAX_BINS)
+        check_number("min_response", min_response, 0.0, 1.0)
+        check_number("min_overlap_correlation", min_overlap_correlation, -1.0, 1.0)
         self._prepare = FramePreparation(reference, median_ksize, clip_sigmas, clip_min_spread)
         self.angle_bins = angle_bins
         self.radius_bins = radius_bins

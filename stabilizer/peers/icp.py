@@ -75,6 +75,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from stabilizer.inputs import check_integer, check_number
 from stabilizer.motion import Motion, image_centre, rotation_matrix, transform_points
 from stabilizer.peers.preparation import (
     FramePreparation,
@@ -180,17 +181,22 @@ class IcpEstimator:
         if error_metric not in ERROR_METRICS:
             raise ValueError(f"error_metric {error_metric!r} is not accepted; accepted: "
                              f"{', '.join(ERROR_METRICS)}")
-        if not 0.0 < overlap <= 1.0:
-            raise ValueError(f"overlap must be in (0, 1]; got {overlap}")
-        if max_distance_px <= 0 or max_iterations < 1 or min_points < 2:
-            raise ValueError("need max_distance_px > 0, max_iterations >= 1 and min_points >= 2; "
-                             f"got {max_distance_px}, {max_iterations}, {min_points}")
-        if not 0.0 <= min_fraction <= accept_fraction <= 1.0:
-            raise ValueError(f"need 0 <= min_fraction <= accept_fraction <= 1; "
-                             f"got {min_fraction}, {accept_fraction}")
-        if max_starts < 1 or gate_factor <= 0 or min_gate_px <= 0:
-            raise ValueError(f"need max_starts >= 1, gate_factor > 0 and min_gate_px > 0; "
-                             f"got {max_starts}, {gate_factor}, {min_gate_px}")
+        check_number("canny_low", canny_low, 0.0)
+        check_number("canny_high", canny_high, canny_low)
+        check_integer("border_margin_px", border_margin_px, 0)
+        check_integer("max_points", max_points, 2)
+        check_number("max_distance_px", max_distance_px, 0.0, open_low=True)
+        check_number("overlap", overlap, 0.0, 1.0, open_low=True)
+        check_integer("max_iterations", max_iterations, 1)
+        check_number("tolerance_deg", tolerance_deg, 0.0)
+        check_number("tolerance_px", tolerance_px, 0.0)
+        check_integer("max_starts", max_starts, 1)
+        check_integer("min_points", min_points, 2)
+        check_number("inlier_px", inlier_px, 0.0, open_low=True)
+        check_number("accept_fraction", accept_fraction, 0.0, 1.0)
+        check_number("min_fraction", min_fraction, 0.0, accept_fraction)
+        check_number("gate_factor", gate_factor, 0.0, open_low=True)
+        check_number("min_gate_px", min_gate_px, 0.0, open_low=True)
         self._prepare = FramePreparation(reference, median_ksize, clip_sigmas, clip_min_spread)
         self.canny_low, self.canny_high = canny_low, canny_high
         self.border_margin_px = border_margin_px

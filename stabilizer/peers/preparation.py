@@ -16,6 +16,8 @@ import math
 import cv2
 import numpy as np
 
+from stabilizer.inputs import check_integer, check_number
+
 #: A frame needs at least this many valid (non-zero) pixels to show any scene.
 MIN_VALID_PIXELS = 64
 #: Smallest image side (pixels) of every peer. The start search works at half resolution and
@@ -171,7 +173,8 @@ def even_dft_size(size: int) -> int:
 
 def check_median_ksize(median_ksize: int) -> None:
     """ValueError unless ``median_ksize`` is 0, 1 (no filter) or an odd size >= 3."""
-    if median_ksize < 0 or (median_ksize > 1 and median_ksize % 2 == 0):
+    check_integer("median_ksize", median_ksize, 0)
+    if median_ksize > 1 and median_ksize % 2 == 0:
         raise ValueError(f"median_ksize must be 0, 1 (no filter) or an odd integer >= 3; "
                          f"got {median_ksize}")
 
@@ -223,9 +226,8 @@ class FramePreparation:
     def __init__(self, reference: np.ndarray, median_ksize: int, clip_sigmas: float,
                  min_spread: float):
         check_median_ksize(median_ksize)
-        if clip_sigmas < 0 or min_spread <= 0:
-            raise ValueError(f"need clip_sigmas >= 0 and min_spread > 0; "
-                             f"got {clip_sigmas}, {min_spread}")
+        check_number("clip_sigmas", clip_sigmas, 0.0)
+        check_number("clip_min_spread", min_spread, 0.0, open_low=True)
         self.median_ksize = median_ksize
         self.value_range = (robust_value_range(denoised(reference, median_ksize), clip_sigmas,
                                                min_spread=min_spread)

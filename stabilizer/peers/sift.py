@@ -27,6 +27,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from stabilizer.inputs import check_integer, check_number
 from stabilizer.motion import Motion, image_centre, transform_points
 from stabilizer.peers.preparation import (
     check_median_ksize,
@@ -88,13 +89,14 @@ class SiftEstimator:
                  border_margin_px: int = 3, contrast_threshold: float = 0.003,
                  max_features: int = 0, max_hypotheses: int = 2000,
                  edge_threshold: float = 20.0):
-        if not 0.0 < ratio < 1.0:
-            raise ValueError(f"ratio must be in (0, 1); got {ratio}")
-        if ransac_threshold_px <= 0:
-            raise ValueError(f"ransac_threshold_px must be > 0; got {ransac_threshold_px}")
-        if min_inliers < 2:
-            raise ValueError(f"min_inliers must be >= 2 (a rigid motion needs 2 points); "
-                             f"got {min_inliers}")
+        check_number("ratio", ratio, 0.0, 1.0, open_low=True, open_high=True)
+        check_number("ransac_threshold_px", ransac_threshold_px, 0.0, open_low=True)
+        check_integer("min_inliers", min_inliers, 2)  # a rigid motion needs 2 points
+        check_integer("border_margin_px", border_margin_px, 0)
+        check_number("contrast_threshold", contrast_threshold, 0.0)
+        check_integer("max_features", max_features, 0)  # 0: every feature
+        check_integer("max_hypotheses", max_hypotheses, 1)
+        check_number("edge_threshold", edge_threshold, 0.0, open_low=True)
         check_median_ksize(median_ksize)
         self.median_ksize = median_ksize
         self.ratio = ratio

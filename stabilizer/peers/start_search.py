@@ -17,6 +17,7 @@ import math
 import cv2
 import numpy as np
 
+from stabilizer.inputs import check_angles
 from stabilizer.motion import Motion, image_centre, rotation_matrix
 from stabilizer.peers.preparation import even_dft_size, zero_mean_float
 
@@ -40,8 +41,7 @@ class StartSearch:
     """
 
     def __init__(self, reference: np.ndarray, angles_deg: tuple[float, ...] = START_ANGLES_DEG):
-        if not angles_deg:
-            raise ValueError("angles_deg must hold at least one angle")
+        check_angles("start_angles_deg", angles_deg)
         self.angles_deg = tuple(angles_deg)
         reference_half = cv2.pyrDown(zero_mean_float(reference))
         self._window = cv2.createHanningWindow(reference_half.shape[::-1], cv2.CV_32F)

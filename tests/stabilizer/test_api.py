@@ -1,5 +1,7 @@
 """Input validation and degenerate inputs through ``stabilizer.estimate``."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,37 @@ def test_unknown_method():
 def test_unknown_parameter_is_rejected():
     with pytest.raises(TypeError):
         stabilizer.estimate(REFERENCE, REFERENCE, not_a_parameter=1)
+
+
+@pytest.mark.parametrize("method, params, named", [
+    ("fourier_mellin", {"angle_bins": 8.5}, "angle_bins"),
+    ("fourier_mellin", {"radius_bins": 100_000}, "radius_bins"),
+    ("fourier_mellin", {"min_response": math.nan}, "min_response"),
+    ("ecc", {"levels": 2.5}, "levels"),
+    ("ecc", {"epsilon": math.nan}, "epsilon"),
+    ("ecc", {"min_correlation": math.nan}, "min_correlation"),
+    ("ecc", {"start_angles_deg": ()}, "start_angles_deg"),
+    ("ecc", {"clip_sigmas": -1.0}, "clip_sigmas"),
+    ("sift", {"ransac_threshold_px": math.nan}, "ransac_threshold_px"),
+    ("sift", {"max_hypotheses": 0}, "max_hypotheses"),
+    ("sift", {"border_margin_px": -5}, "border_margin_px"),
+    ("icp", {"canny_low": math.nan}, "canny_low"),
+    ("icp", {"inlier_px": -1.0}, "inlier_px"),
+    ("icp", {"tolerance_deg": math.nan}, "tolerance_deg"),
+])
+def test_every_methods_bad_parameter_value_is_named(method, params, named):
+    with pytest.raises(ValueError, match=f"^{named}[ \\[]"):
+        stabilizer.Stabilizer(REFERENCE, method, **params)
+
+
+@pytest.mark.parametrize("params, named", [
+    ({"refinements": "off"}, "refinements must be a Refinements"),
+    ({"translation": 5}, "translation must be a TranslationParams"),
+    ({"verification": "yes"}, "verification must be a VerificationParams"),
+])
+def test_a_parameter_of_the_wrong_type_is_named(params, named):
+    with pytest.raises(TypeError, match=named):
+        stabilizer.Stabilizer(REFERENCE, "t2fuzzy", **params)
 
 
 def test_bad_parameter_value_is_a_value_error():
