@@ -129,6 +129,7 @@ def apply_motion(
     Nearest-neighbour interpolation by default, because disparity values must not be blended
     across depth edges.
     """
+    _check_warp(image, motion, interpolation)
     height, width = image.shape[:2]
     return cv2.warpAffine(
         image, motion_matrix(motion, image.shape), (width, height),
@@ -143,6 +144,7 @@ def compensate(
 
     A failed Motion (no estimate) leaves the frame as it is, returned as a copy.
     """
+    _check_warp(frame, motion, interpolation)
     if not motion.ok:
         return np.array(frame, copy=True)
     height, width = frame.shape[:2]
@@ -151,6 +153,33 @@ def compensate(
         flags=interpolation | cv2.WARP_INVERSE_MAP,
         borderMode=cv2.BORDER_CONSTANT, borderValue=0,
     )
+
+
+#: Image types ``cv2.warpAffine`` keeps as they are.
+WARP_DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64)
+#: Interpolations ``cv2.warpAffine`` takes.
+WARP_INTERPOLATIONS = {cv2.INTER_NEAREST: "INTER_NEAREST", cv2.INTER_LINEAR: "INTER_LINEAR",
+                       cv2.INTER_CUBIC: "INTER_CUBIC", cv2.INTER_LANCZOS4: "INTER_LANCZOS4"}
+
+
+def _check_warp(image: np.ndarray, motion: Motion, interpolation: int) -> None:
+    """TypeError or ValueError, naming what was given and what is accepted, unless ``image``,
+    ``motion`` and ``interpolation`` can be warped as they are."""
+    if not isinstance(motion, Motion):
+        raise TypeError(f"motion must be a stabilizer.motion.Motion; got "
+                        f"{type(motion).__name__}")
+    if motion.ok and not all(math.isfinite(value) for value in motion.as_tuple()):
+        raise ValueError(f"an ok motion must have finite values; got {motion.as_tuple()}")
+    if not isinstance(image, np.ndarray) or image.dtype not in WARP_DTYPES \
+            or image.ndim not in (2, 3) or 0 in image.shape[:2]:
+        described = (f"{image.dtype} with shape {image.shape}" if isinstance(image, np.ndarray)
+                     else type(image).__name__)
+        raise ValueError(f"image must be a non-empty 2-D (or 2-D with channels) array of "
+                         f"{', '.join(np.dtype(kind).name for kind in WARP_DTYPES)}; "
+                         f"got {described}")
+    if interpolation not in WARP_INTERPOLATIONS:
+        accepted = ", ".join(f"cv2.{name}" for name in WARP_INTERPOLATIONS.values())
+        raise ValueError(f"interpolation must be one of {accepted}; got {interpolation!r}")
 
 
 def wrap_angle_deg(angle: np.ndarray | float, period: float = 360.0):

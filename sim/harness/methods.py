@@ -18,6 +18,7 @@ status says why; the run goes on.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import importlib.metadata
@@ -25,7 +26,8 @@ import inspect
 import math
 import numbers
 import re
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -130,7 +132,8 @@ def _load(name: str) -> Any:
             raise MethodError(name, "not an import path of the form package.module:Name")
         module_name, attribute = name.split(":")
         try:
-            target = importlib.import_module(module_name)
+            with _as_it_was():
+                target = importlib.import_module(module_name)
         # A plugin's own import error (or a sys.exit() on import) is the user's to read.
         except (Exception, SystemExit) as error:
             raise MethodError(name, f"cannot import module {module_name} "
@@ -147,7 +150,8 @@ def _load(name: str) -> Any:
                                 "and not an import path")
     entry_point = next(iter(entry_points))
     try:
-        return entry_point.load()
+        with _as_it_was():
+            return entry_point.load()
     except (Exception, SystemExit) as error:
         raise MethodError(name, f"entry point {entry_point.value}"
                                 f"{_distribution_text(entry_point)} cannot be loaded "
@@ -168,11 +172,13 @@ class PluginStabilizer:
     """A method from outside ``stabilizer`` behind the ``Stabilizer`` interface.
 
     The reference and every current frame reach the method as ``Stabilizer`` passes them
-    (uint8 disparity-like images of one shape, 0 = invalid), read-only, so a method cannot
-    alter the frames the other methods see. Its result becomes a :class:`Motion`
-    (:func:`as_motion`), and an ``"ok"`` result passes the same trust check as a built-in
-    method's (the verifier of :func:`stabilizer.verification.shared_verifier`;
-    ``"unverified"`` when it fails), so ``"ok"`` means the same for every method scored. If
+    (uint8 disparity-like images of one shape, 0 = invalid), each as a read-only copy of its
+    own: writing into it fails the frame, and a method that makes it writable again changes
+    only its copy, never the frames the other methods and the trust check see. Its result
+    becomes a :class:`Motion` (:func:`as_motion`), and an ``"ok"`` result passes the same
+    trust check as a built-in method's (the verifier of
+    :func:`stabilizer.verification.shared_verifier`; ``"unverified"`` when it fails), so
+    ``"ok"`` means the same for every method scored. If
     building the estimator raises, every frame against this reference fails with
     ``"exception:<type>"``; what ``estimate`` raises is left to the caller (the harness's
     ``timed_estimate`` records it the same way as for a built-in method).
@@ -189,45 +195,70 @@ class PluginStabilizer:
     def __init__(self, method: str, target: Any, reference: np.ndarray, *,
                  verification: VerificationParams | None = VerificationParams(), **params: Any):
         self.method = method
-        self.reference = _read_only(as_disparity(reference, "reference"))
+        self.reference = as_disparity(reference, "reference")
         self._verifier = shared_verifier(self.reference, verification) if verification else None
         self._failure: Motion | None = None
         if inspect.isclass(target):
             try:
-                self._estimate = target(self.reference, **params).estimate
+                with _as_it_was():
+                    self._estimate = target(_read_only_copy(self.reference), **params).estimate
+            except KeyboardInterrupt:
+                raise
             # A plugin's bug (a sys.exit() too) fails its frames, not the run.
-            except (Exception, SystemExit) as error:
+            except BaseException as error:
                 self._failure = Motion.failed(f"exception:{type(error).__name__}",
                                               message=str(error), stage="reference")
         else:
-            self._estimate = functools.partial(target, self.reference, **params)
+            self._estimate = functools.partial(target, _read_only_copy(self.reference), **params)
 
     def estimate(self, current: np.ndarray) -> Motion:
         if self._failure is not None:
             return self._failure
-        current = _read_only(as_disparity(current, "current"))
+        current = as_disparity(current, "current")
         check_same_shape(self.reference, current)
-        motion = as_motion(self._estimate(current))
+        with _as_it_was():
+            result = self._estimate(_read_only_copy(current))
+        motion = as_motion(result)
         return self._verifier(current, motion) if self._verifier is not None else motion
 
 
-def _read_only(image: np.ndarray) -> np.ndarray:
-    view = image.view()
-    view.flags.writeable = False
-    return view
+@contextlib.contextmanager
+def _as_it_was() -> Iterator[None]:
+    """numpy's floating-point error settings and the warning filters restored after the block:
+    a plugin that sets them (``np.seterr(all="raise")``, ``warnings.simplefilter("error")``)
+    changes them for itself, not for the other methods and the scoring."""
+    with np.errstate(), warnings.catch_warnings():
+        yield
+
+
+def _read_only_copy(image: np.ndarray) -> np.ndarray:
+    copy = image.copy()
+    copy.flags.writeable = False
+    return copy
 
 
 def as_motion(result: Any) -> Motion:
     """A plugin's result as a Motion: a Motion, or three real numbers (angle_deg, dx, dy).
 
-    A failed Motion is kept as it is. Anything else is a failed Motion whose status says why:
-    ``"nan"`` for an estimate that is not finite (NaN or infinite), ``"wrong_type:<type>"``
-    for a result, or a value inside it, that is not of the accepted types.
+    A failed Motion keeps its status, which must be non-empty text (``"wrong_type:status"``
+    otherwise). Anything else is a failed Motion whose status says why: ``"nan"`` for an
+    estimate that is not finite (NaN, infinite, or an integer too large for a float),
+    ``"wrong_type:<type>"`` for a result, or a value inside it, that is not of the accepted
+    types, ``"wrong_type:diagnostics"`` for diagnostics that are not a dict. Of the
+    diagnostics, only plain values are kept (:func:`plain_diagnostics`).
     """
     if isinstance(result, Motion):
+        if not isinstance(result.diagnostics, dict):
+            return Motion.failed("wrong_type:diagnostics",
+                                 message=f"diagnostics must be a dict; got "
+                                         f"{type(result.diagnostics).__name__}")
+        diagnostics = plain_diagnostics(result.diagnostics)
         if not result.ok:
-            return result
-        values, diagnostics = result.as_tuple(), result.diagnostics
+            if not (isinstance(result.status, str) and result.status):
+                return Motion.failed("wrong_type:status", status=repr(result.status),
+                                     message="a failure's status must be non-empty text")
+            return Motion.failed(result.status, **diagnostics)
+        values = result.as_tuple()
     elif isinstance(result, (tuple, list, np.ndarray)) and len(result) == 3:
         values, diagnostics = tuple(result), {}
     else:
@@ -237,6 +268,47 @@ def as_motion(result: Any) -> Motion:
         if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
             return Motion.failed(f"wrong_type:{type(value).__name__}",
                                  message="angle_deg, dx and dy must be real numbers")
-    if not all(math.isfinite(value) for value in values):
-        return Motion.failed("nan", values=[float(value) for value in values])
-    return Motion(*(float(value) for value in values), diagnostics=diagnostics)
+    try:
+        floats = [float(value) for value in values]
+    except OverflowError:  # an integer beyond any float
+        return Motion.failed("nan", values=[str(value) for value in values])
+    if not all(math.isfinite(value) for value in floats):
+        return Motion.failed("nan", values=floats)
+    return Motion(*floats, diagnostics=diagnostics)
+
+
+#: Diagnostics keys the recording draws for the built-in methods (segmentation, ellipses).
+RECORDING_KEYS = ("labels", "ellipses")
+
+
+def plain_diagnostics(diagnostics: dict) -> dict:
+    """The entries of a plugin's diagnostics that every part of the harness can carry (worker
+    processes pickle them, metrics and recordings write them): text keys with None, bool,
+    numbers (numpy's as Python's), text, or lists and tuples of these, except the keys the
+    recording draws for the built-in methods (:data:`RECORDING_KEYS`). The names of the
+    entries left out are kept as ``dropped_diagnostics``."""
+    kept, dropped = {}, []
+    for key, value in diagnostics.items():
+        plain = _plain(value) if isinstance(key, str) and key not in RECORDING_KEYS else _NOT_PLAIN
+        if plain is _NOT_PLAIN:
+            dropped.append(str(key))
+        else:
+            kept[key] = plain
+    if dropped:
+        kept["dropped_diagnostics"] = dropped
+    return kept
+
+
+_NOT_PLAIN = object()
+
+
+def _plain(value: Any) -> Any:
+    """``value`` as plain Python data, or ``_NOT_PLAIN``."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (list, tuple)):
+        items = [_plain(item) for item in value]
+        return _NOT_PLAIN if any(item is _NOT_PLAIN for item in items) else type(value)(items)
+    return _NOT_PLAIN

@@ -144,8 +144,11 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     start = time.perf_counter()
     try:
         motion = stabilizer.estimate(current)
-    # A method's bug, or a plugin's sys.exit(), must not take the other methods' run down.
-    except (Exception, SystemExit) as error:
+    except KeyboardInterrupt:
+        raise
+    # A method's bug, or a plugin's sys.exit() or own BaseException, must not take the other
+    # methods' run down.
+    except BaseException as error:
         motion = Motion.failed(f"exception:{type(error).__name__}", message=str(error))
     return motion, 1e3 * (time.perf_counter() - start)
 

@@ -10,6 +10,8 @@ import pytest
 
 from stabilizer.motion import (
     Motion,
+    apply_motion,
+    compensate,
     image_centre,
     motion_from_matrix,
     motion_from_rotation,
@@ -74,3 +76,20 @@ def test_transform_points_inverse_undoes_the_motion():
     moved = transform_points(motion, points, SR4000_SHAPE)
     np.testing.assert_allclose(transform_points(motion, moved, SR4000_SHAPE, inverse=True),
                                points, atol=1e-9)
+
+
+@pytest.mark.parametrize("image, motion, interpolation, error, named", [
+    (np.zeros((8, 8), np.uint8), [1.0, 2.0, 3.0], cv2.INTER_NEAREST, TypeError, "Motion"),
+    (np.zeros((8, 8), np.uint8), Motion(math.nan, 0.0, 0.0, "ok"), cv2.INTER_NEAREST,
+     ValueError, "finite"),
+    (np.zeros(8, np.uint8), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError, "2-D"),
+    (np.zeros((0, 0), np.uint8), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError,
+     "non-empty"),
+    (np.zeros((8, 8), np.int64), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError, "int64"),
+    (np.zeros((8, 8), bool), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError, "bool"),
+    (np.zeros((8, 8), np.uint8), Motion(1.0, 0.0, 0.0), 99, ValueError, "interpolation"),
+])
+def test_warping_names_what_it_cannot_take(image, motion, interpolation, error, named):
+    for warp in (apply_motion, compensate):
+        with pytest.raises(error, match=named):
+            warp(image, motion, interpolation)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 
 import numpy as np
 
@@ -60,6 +61,53 @@ class ExitsOnReference:
 
     def estimate(self, current: np.ndarray) -> Motion:
         return Motion(*FIXED)
+
+
+class OwnBaseException(BaseException):
+    """Not an Exception: a plugin's own, as some frameworks raise."""
+
+
+def raises_its_own_base_exception(reference: np.ndarray, current: np.ndarray) -> Motion:
+    raise OwnBaseException("not an Exception")
+
+
+def unwrites_its_input(reference: np.ndarray, current: np.ndarray) -> Motion:
+    """Makes the frames it is given writable again (numpy allows it for an array that owns
+    its memory, or a view of a writable one) and zeroes them."""
+    for image in (reference, current):
+        image.flags.writeable = True
+        image[...] = 0
+    return Motion(*FIXED)
+
+
+class ZeroesItsReference:
+    """Makes its reference writable again and zeroes it."""
+
+    def __init__(self, reference: np.ndarray):
+        reference.flags.writeable = True
+        reference[...] = 0
+
+    def estimate(self, current: np.ndarray) -> Motion:
+        return Motion(*FIXED)
+
+
+def changes_global_settings(reference: np.ndarray, current: np.ndarray) -> Motion:
+    np.seterr(all="raise")
+    warnings.simplefilter("error")
+    return Motion(*FIXED)
+
+
+def odd_diagnostics(reference: np.ndarray, current: np.ndarray) -> Motion:
+    return Motion(*FIXED, diagnostics={"n": np.int64(4), "pair": (1.5, "a"),
+                                       "callback": lambda: 1, "labels": "not an image"})
+
+
+def list_diagnostics(reference: np.ndarray, current: np.ndarray) -> Motion:
+    return Motion(*FIXED, diagnostics=[1, 2])
+
+
+def huge_integer(reference: np.ndarray, current: np.ndarray) -> tuple:
+    return (10**400, 0, 0)
 
 
 def nan_motion(reference: np.ndarray, current: np.ndarray) -> Motion:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from sim.harness.sweep.spec import SweepError
 from stabilizer import Stabilizer, apply_motion, available_methods, depth_to_disparity
 from stabilizer.motion import Motion
 from stabilizer.testing import make_depth_scene
+from tests.sim.harness import plugin_methods
 from tests.sim.harness.plugin_methods import FIXED
 
 HELPERS = "tests.sim.harness.plugin_methods"
@@ -72,6 +74,9 @@ def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
     ("writes_its_input", "exception:ValueError"),
     ("FailsOnReference", "exception:RuntimeError"),
     ("exits", "exception:SystemExit"),
+    ("raises_its_own_base_exception", "exception:OwnBaseException"),
+    ("huge_integer", "nan"),
+    ("list_diagnostics", "wrong_type:diagnostics"),
     ("ExitsOnReference", "exception:SystemExit"),
     ("reported_failure", "no_structure"),
 ])
@@ -81,11 +86,26 @@ def test_a_misbehaving_method_fails_the_frame_with_the_reason(frames, name, stat
     assert all(math.isnan(value) for value in motion.as_tuple())
 
 
-def test_a_method_cannot_change_the_frames_the_others_see(frames):
+@pytest.mark.parametrize("name", ["writes_its_input", "unwrites_its_input",
+                                  "ZeroesItsReference"])
+def test_a_method_cannot_change_the_frames_the_others_see(frames, name):
     reference, current = frames
-    before = current.copy()
-    scored(f"{HELPERS}:writes_its_input", frames)
-    assert np.array_equal(current, before)
+    before = (reference.copy(), current.copy())
+    scored(f"{HELPERS}:{name}", frames)
+    assert np.array_equal(reference, before[0]) and np.array_equal(current, before[1])
+
+
+def test_a_method_cannot_change_numpys_settings_or_the_warning_filters(frames):
+    settings, filters = np.geterr(), list(warnings.filters)
+    scored(f"{HELPERS}:changes_global_settings", frames)
+    assert np.geterr() == settings and warnings.filters == filters
+
+
+def test_a_methods_diagnostics_keep_plain_data_only(frames):
+    motion = as_motion(plugin_methods.odd_diagnostics(*frames))
+    assert motion.diagnostics == {"n": 4, "pair": (1.5, "a"),
+                                  "dropped_diagnostics": ["callback", "labels"]}
+    assert type(motion.diagnostics["n"]) is int
 
 
 def test_as_motion_keeps_a_good_motion_and_its_diagnostics():
