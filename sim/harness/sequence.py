@@ -48,7 +48,7 @@ INCOMPLETE = "incomplete"
 #: How each folder's PNGs are written: zlib level and OpenCV's PNG filter. The reported
 #: depth is noisy in its last digits and compresses to 76% at best, so it is stored
 #: uncompressed and unfiltered: decoding then takes 0.05 ms instead of 0.37 ms (zlib level 3
-#: with libpng's adaptive filters), for a sequence of 46 MB instead of 38 MB (default
+#: with libpng's adaptive filters), for a sequence of 47 MB instead of 38 MB (default
 #: scenario). The exact depth of smooth surfaces compresses to a fifth at level 3
 #: (uncompressed, it would take the sequence past 60 MB); its "up" filter (each row from the
 #: one above) decodes in 0.20 ms against the adaptive filters' 0.26 ms, for 0.5 MB more;
