@@ -23,7 +23,7 @@ from sim.harness.runner import RunConfig
 from sim.harness.suite.spec import SuiteSequence, SuiteSpec
 from sim.harness.suite.tables import SuiteResult, write_suite_outputs
 from sim.harness.sweep.execute import execute_plan
-from sim.harness.sweep.plan import RUNS_FOLDER
+from sim.harness.sweep.plan import RUNS_FOLDER, planned_scenario
 
 
 #: Sub-folder of a sequence's run folder that holds its recorded sequence.
@@ -43,30 +43,63 @@ class SuiteJob(RunConfig):
 
 
 def record_then_score(config: RunConfig) -> dict:
-    """One sequence of a suite: record it (unless a finished recording is there), then score
-    ``config.methods`` (and a :class:`SuiteJob`'s estimates files) on it; returns the run's
-    metrics, as ``sim.harness.runner.run`` would."""
+    """One sequence of a suite: record it (unless a recording of this configuration, finished
+    and readable, is there), then score ``config.methods`` (and a :class:`SuiteJob`'s
+    estimates files) on it; returns the run's metrics, as ``sim.harness.runner.run`` would.
+
+    A recording that was interrupted is not scored: the stop is raised again
+    (``KeyboardInterrupt``), and running the suite again records it anew. A recording found
+    damaged when scored (a frame's file unreadable) is recorded again, once.
+    """
     from sim.harness.runner import RecordConfig, record
     from sim.harness.score import ScoreConfig, score
-    from sim.harness.sequence import SEQUENCE_JSON
+    from sim.harness.validation import FileValueError
 
     sequence = Path(config.out_dir) / SEQUENCE_FOLDER
-    if not _recorded_to_its_end(sequence / SEQUENCE_JSON):
-        record(RecordConfig(config.scenario, str(sequence), max_frames=config.max_frames,
-                            seed=config.seed, overrides=config.overrides))
     estimates = dict(config.estimates) if isinstance(config, SuiteJob) else {}
-    return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
-                             estimates=estimates, record=config.record))
+
+    def record_it() -> None:
+        header = record(RecordConfig(config.scenario, str(sequence),
+                                     max_frames=config.max_frames, seed=config.seed,
+                                     overrides=config.overrides))
+        if header["ended"] == "interrupted":
+            raise KeyboardInterrupt(header["message"])
+
+    recorded_now = not _recorded_as_planned(sequence, config)
+    if recorded_now:
+        record_it()
+    try:
+        return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
+                                 estimates=estimates, record=config.record))
+    except FileValueError as error:
+        if recorded_now or not Path(error.source).resolve().is_relative_to(sequence.resolve()):
+            raise
+        record_it()
+        return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
+                                 estimates=estimates, record=config.record))
 
 
-def _recorded_to_its_end(sequence_json: Path) -> bool:
-    import json
+def _recorded_as_planned(sequence: Path, config: RunConfig) -> bool:
+    """Whether ``sequence`` holds a readable recording, finished ("complete" or "fell"), of the
+    scenario ``config`` asks for (with its seed and overrides) and of its number of frames
+    (fewer after a fall). A change to the suite file's ``max_frames`` or overrides is
+    recorded anew."""
+    from sim.harness.runner import _configured_scenario, frame_count
+    from sim.harness.sequence import load_sequence
+    from sim.harness.validation import FileValueError
 
     try:
-        return json.loads(sequence_json.read_text(encoding="utf-8")).get("ended") in (
-            "complete", "fell")
-    except (OSError, ValueError):
+        recorded = load_sequence(sequence)
+    except (FileValueError, FileNotFoundError):
         return False
+    if recorded.ended not in ("complete", "fell"):
+        return False
+    planned = {k: v for k, v in planned_scenario(config).items() if k != "source"}
+    frames = frame_count(_configured_scenario(config.scenario, config.seed, config.overrides),
+                         config.max_frames)
+    return (recorded.scenario == planned
+            and (recorded.n_frames == frames
+                 or (recorded.ended == "fell" and recorded.n_frames <= frames)))
 
 
 @dataclass(frozen=True)
@@ -81,6 +114,15 @@ class SuiteRun:
     def scored(self) -> tuple[str, ...]:
         """The names a finished run must have scored: the methods, then the estimates."""
         return (*self.config.methods, *self.config.estimates)
+
+    def made_by_this_plan(self, metrics: dict) -> bool:
+        """Whether a finished run's metrics come from this run's configuration: its sequence
+        recorded as planned now (:func:`_recorded_as_planned`) and its estimates files read
+        from the paths given now. A suite file or command changed since is run again."""
+        estimates = (metrics.get("run") or {}).get("estimates") or {}
+        return (all(estimates.get(name) == path for name, path in self.config.estimates.items())
+                and _recorded_as_planned(Path(self.config.out_dir) / SEQUENCE_FOLDER,
+                                         self.config))
 
 
 def plan_suite(spec: SuiteSpec, out_dir: str | os.PathLike,

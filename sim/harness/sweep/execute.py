@@ -17,7 +17,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sim.harness.runner import RunConfig, run
+from sim.harness.interrupts import Interrupted
+from sim.harness.runner import INTERRUPTED, RunConfig, run
 from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
@@ -112,7 +113,8 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=limit_threads)
     try:
-        futures = {pool.submit(run_fn, sweep_run.config): sweep_run for sweep_run in pending}
+        futures = {pool.submit(_run_unless_stopped, run_fn, sweep_run.config): sweep_run
+                   for sweep_run in pending}
         remaining = set(futures)
         while remaining:
             done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
@@ -120,14 +122,37 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
                 error = future.exception()
                 yield (RunOutcome(futures[future], None, error=_describe(error)) if error
                        else RunOutcome(futures[future], future.result()))
-    except BaseException:
+    except BaseException as error:
         # Ctrl-C reaches the workers from the terminal; SIGTERM and SIGHUP reach only this
-        # process, so pass the stop on: each started run then ends with complete files.
-        for worker in multiprocessing.active_children():
-            worker.terminate()
+        # process, so pass those on: each started run then ends with complete files. A second
+        # signal on top of a Ctrl-C would cut a run's final writes short.
+        if not isinstance(error, KeyboardInterrupt) or isinstance(error, Interrupted):
+            for worker in multiprocessing.active_children():
+                worker.terminate()
         raise
     finally:  # also for an abandoned generator: drop queued runs, let started ones end
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: In a worker process: whether a run of this worker was interrupted.
+_worker_stopped = False
+
+
+def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
+    """``run_fn(config)`` in a pool's worker, unless a run of this worker was interrupted
+    before: the pool hands a worker one more queued run than it can cancel, and a stopped
+    sweep must not start it."""
+    global _worker_stopped
+    if _worker_stopped:
+        raise KeyboardInterrupt("not started: the runs were interrupted")
+    try:
+        metrics = run_fn(config)
+    except KeyboardInterrupt:
+        _worker_stopped = True
+        raise
+    if metrics.get("status") == INTERRUPTED:
+        _worker_stopped = True
+    return metrics
 
 
 def _import_ray():

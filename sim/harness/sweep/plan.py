@@ -37,6 +37,13 @@ class SweepRun:
         """The methods a finished run must have scored (None: the scenario's)."""
         return self.config.methods
 
+    def made_by_this_plan(self, metrics: dict) -> bool:
+        """Whether a finished run's metrics come from this run's configuration: the scenario
+        as resolved now (with its seed and overrides) and ``max_frames``. A sweep file changed
+        since is run again."""
+        return (metrics.get("scenario") == planned_scenario(self.config)
+                and (metrics.get("run") or {}).get("max_frames") == self.config.max_frames)
+
 
 @dataclass(frozen=True)
 class RunOutcome:
@@ -52,6 +59,17 @@ class RunOutcome:
         if self.error:
             return f"error: {self.error}"
         return str((self.metrics or {}).get("status", "unknown"))
+
+
+def planned_scenario(config: RunConfig) -> dict:
+    """The scenario ``config`` runs, resolved (seed and overrides applied), as metrics.json
+    and sequence.json hold it (through JSON)."""
+    import json
+
+    from sim.harness.runner import _configured_scenario
+
+    scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
+    return json.loads(json.dumps(scenario.to_dict()))
 
 
 def plan_sweep(spec: SweepSpec, out_dir: str | os.PathLike) -> list[SweepRun]:
@@ -103,11 +121,13 @@ def completed_metrics(run_dir: str | os.PathLike,
 
 
 def split_done(plan: Sequence[SweepRun]) -> tuple[list[RunOutcome], list[SweepRun]]:
-    """The runs of ``plan`` already done (as skipped outcomes) and those still to run."""
+    """The runs of ``plan`` already done (as skipped outcomes) and those still to run: a run
+    is done when it finished, scored every method asked for, and was made by the plan as it is
+    now (``made_by_this_plan``)."""
     done, pending = [], []
     for sweep_run in plan:
         metrics = completed_metrics(sweep_run.config.out_dir, sweep_run.scored)
-        if metrics is None:
+        if metrics is None or not sweep_run.made_by_this_plan(metrics):
             pending.append(sweep_run)
         else:
             done.append(RunOutcome(sweep_run, metrics, skipped=True))

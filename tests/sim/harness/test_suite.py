@@ -391,3 +391,53 @@ def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
     recorded = (tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").stat().st_mtime_ns
     assert record_then_score(config)["summary"]["run"]["ecc"]["errors"] == run_errors
     assert (tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").stat().st_mtime_ns == recorded
+    # Another max_frames, or damaged frames, are recorded again; an interrupted recording is
+    # not scored, and the stop goes on.
+    longer = RunConfig(**{**config.__dict__, "max_frames": 14})
+    record_then_score(longer)
+    assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 14
+    (tmp_path / "job" / SEQUENCE_FOLDER / "depth" / "000005.png").write_bytes(b"damaged")
+    assert record_then_score(longer)["summary"]["run"]["ecc"]["errors"] == \
+        record_then_score(longer)["summary"]["run"]["ecc"]["errors"]
+    assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).frame(5).depth_m.size
+
+
+def test_an_interrupted_recording_is_not_scored_and_is_recorded_again(tmp_path, monkeypatch):
+    import sim.harness.runner
+    from sim.harness.runner import RunConfig
+    from sim.harness.suite.run import SEQUENCE_FOLDER, record_then_score
+
+    config = RunConfig(scenario=str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"),
+                       out_dir=str(tmp_path / "job"), methods=("ecc",), record=False,
+                       max_frames=6)
+    real = sim.harness.runner.frame_truth
+    calls = []
+
+    def interrupted_at_the_fourth(*args):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setattr(sim.harness.runner, "frame_truth", interrupted_at_the_fourth)
+    with pytest.raises(KeyboardInterrupt):
+        record_then_score(config)
+    assert not (tmp_path / "job" / "metrics.json").exists()
+    monkeypatch.setattr(sim.harness.runner, "frame_truth", real)
+    assert record_then_score(config)["summary"]["n_frames"] == 6
+    sequence = json.loads((tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").read_text())
+    assert sequence["ended"] == "complete" and sequence["frames"] == 6
+
+
+def test_a_stopped_worker_starts_no_queued_run(monkeypatch):
+    ran = []
+
+    def fake(config):
+        ran.append(config)
+        return {"status": "interrupted"}
+
+    monkeypatch.setattr(sweep_execute, "_worker_stopped", False)
+    assert sweep_execute._run_unless_stopped(fake, "first")["status"] == "interrupted"
+    with pytest.raises(KeyboardInterrupt, match="not started"):
+        sweep_execute._run_unless_stopped(fake, "queued")
+    assert ran == ["first"]

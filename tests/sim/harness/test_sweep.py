@@ -21,6 +21,7 @@ from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, SweepError,
                                completed_metrics, expand_sweep, load_sweep, plan_sweep,
                                run_sweep, sweep_from_dict)
+from sim.harness.sweep.plan import planned_scenario
 
 EXAMPLE_SWEEP = SCENARIOS_DIR / "sweeps" / "noise_sweep.toml"
 METHODS = ("t2fuzzy", "sift")
@@ -53,11 +54,11 @@ def fake_run(config: RunConfig) -> dict:
                 frame, frame / 30, 0, 0, method, "too_few_matches" if failed else "ok", 1.5,
                 *((math.nan,) * 3 if failed else (error, error, error)), 0.0, 0.0, 0.0, "ok",
                 0.1, 100, *((math.nan,) * 3 if failed else (error, error, error))))
-    write_run_outputs(run_dir, scenario={"name": Path(config.scenario).stem,
-                                         "seed": config.seed},
+    # The scenario and max_frames as run() writes them: resuming compares them with the plan.
+    write_run_outputs(run_dir, scenario=planned_scenario(config),
                       records=records, summary=summarize(records),
-                      meta={"seed": config.seed, "parent_mark": PARENT_MARK}, status="complete",
-                      plots=False)
+                      meta={"seed": config.seed, "max_frames": config.max_frames,
+                            "parent_mark": PARENT_MARK}, status="complete", plots=False)
     return read_metrics(run_dir)
 
 
@@ -313,3 +314,13 @@ def test_ray_backend_on_a_local_instance(tmp_path):
     plan = plan_sweep(spec, tmp_path)
     assert [calls(r.config.out_dir) for r in plan] == [1, 1, 1, 1]
     check_table(tmp_path, spec, {r.name: "complete" for r in plan})
+
+
+def test_runs_made_by_another_version_of_the_sweep_file_run_again(tmp_path):
+    run_sweep(small_spec(), tmp_path, workers=1, run_fn=fake_run)
+    assert all(o.skipped for o in run_sweep(small_spec(), tmp_path, workers=1,
+                                            run_fn=fake_run).outcomes)
+    for changed in (small_spec(max_frames=4),
+                    small_spec(overrides={"sensor.overrides.phase_wrapping": False})):
+        assert not any(o.skipped for o in run_sweep(changed, tmp_path, workers=1,
+                                                    run_fn=fake_run).outcomes)
