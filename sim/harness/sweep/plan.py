@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from sim.harness.report import METRICS_JSON, read_metrics
+from sim.harness.report import FRAMES_CSV, METRICS_JSON, read_metrics
 from sim.harness.runner import COMPLETE, FELL, RunConfig
 from sim.harness.sweep.spec import SweepError, SweepSpec, scenario_label
 
@@ -104,11 +104,13 @@ def default_sweep_dir(spec: SweepSpec, results: str | os.PathLike = "results") -
 
 def completed_metrics(run_dir: str | os.PathLike,
                       methods: Sequence[str] | None = None) -> dict | None:
-    """The metrics of a finished run in ``run_dir`` that scored every method of ``methods``
-    (None: whichever it scored), or None if it must (re)run: a method added to a sweep or
-    suite file after its runs finished is scored when it is run again."""
+    """The metrics of a finished run in ``run_dir`` (its metrics.json and frames.csv there)
+    that scored every method of ``methods`` (None: whichever it scored), or None if it must
+    (re)run: a method added to a sweep or suite file after its runs finished is scored when it
+    is run again."""
     path = Path(run_dir) / METRICS_JSON
-    if not path.is_file():
+    # metrics.json is written last; a run folder that lost its per-frame table is not done.
+    if not (path.is_file() and (Path(run_dir) / FRAMES_CSV).is_file()):
         return None
     try:
         document = read_metrics(path)

@@ -169,7 +169,9 @@ def test_a_bad_count_is_refused(command, option, count, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([*command, option, count])
     assert exit_info.value.code == 2
-    assert f"{option}: {count!r}: accepted: an integer >= 1" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"{option}: {count!r}: accepted: an integer >= 1" in err
+    assert err.count("\n") == 1 and f"(usage: egostab {command[0]} --help)" in err
 
 
 @pytest.mark.parametrize("arguments, accepted", [

@@ -222,6 +222,8 @@ def test_a_finished_run_counts_as_done_only_for_the_methods_it_scored(tmp_path):
     assert completed_metrics(config.out_dir, config.methods) is not None
     assert completed_metrics(config.out_dir, config.methods[:1]) is not None
     assert completed_metrics(config.out_dir, (*config.methods, "ecc")) is None  # added later
+    (Path(config.out_dir) / "frames.csv").unlink()  # a folder that lost its table: run again
+    assert completed_metrics(config.out_dir, config.methods) is None
 
 
 def check_table(out_dir: Path, spec, expected_status: dict[str, str]) -> list[dict]:
