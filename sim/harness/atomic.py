@@ -68,3 +68,32 @@ def prepare_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
         raise ValueError(f"{option} {folder}: cannot write there ({error.strerror or error}); "
                          "accepted: a folder this user can create and write") from None
     return folder
+
+
+#: The lock file of a folder in use (:func:`folder_in_use`).
+LOCK_FILE = ".egostab.lock"
+
+
+@contextmanager
+def folder_in_use(path: str | os.PathLike, option: str = "--out") -> Iterator[None]:
+    """Hold ``path`` for this process while the block runs: a second command asking for it
+    (another sweep or suite writing the same runs) is refused with a ValueError of one line,
+    instead of recording over the first one's files. An exclusive ``flock`` on a lock file in
+    the folder, released (and the file removed) at the end, also on an interrupt; the system
+    releases it when the process dies."""
+    import fcntl
+
+    lock_path = Path(path) / LOCK_FILE
+    handle = open(lock_path, "a+", encoding="utf-8")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        raise ValueError(f"{option} {path}: in use by another egostab command; accepted: "
+                         f"another folder, or this one once that command has ended") from None
+    try:
+        yield
+    finally:
+        lock_path.unlink(missing_ok=True)
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        handle.close()

@@ -109,9 +109,12 @@ def run_on_command_line(kind: str, run: Callable[..., Any], spec: Any, out_dir: 
                         backend: str, workers: int | None, ray_address: str | None) -> int:
     """Run a sweep or suite for ``egostab sweep|suite``: print its tables, each failed run and
     its folder. Returns the exit status: 1 if a run failed, 2 without Ray's extra, else 0."""
+    from sim.harness.atomic import folder_in_use
+
     try:
-        result = run(spec, out_dir, backend=backend, workers=workers, ray_address=ray_address,
-                     progress=True)
+        with folder_in_use(out_dir):  # a second sweep or suite into it is refused
+            result = run(spec, out_dir, backend=backend, workers=workers,
+                         ray_address=ray_address, progress=True)
     except ImportError as error:  # --ray without the cluster extra: the message says the fix
         print(f"egostab {kind}: error: {error}", file=sys.stderr)
         return 2

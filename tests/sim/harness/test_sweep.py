@@ -326,3 +326,15 @@ def test_runs_made_by_another_version_of_the_sweep_file_run_again(tmp_path):
                     small_spec(overrides={"sensor.overrides.phase_wrapping": False})):
         assert not any(o.skipped for o in run_sweep(changed, tmp_path, workers=1,
                                                     run_fn=fake_run).outcomes)
+
+
+def test_a_folder_in_use_by_another_sweep_or_suite_is_refused(tmp_path, capsys):
+    from sim.harness.atomic import LOCK_FILE, folder_in_use
+    from sim.harness.cli import main
+
+    with folder_in_use(tmp_path):
+        assert main(["sweep", str(EXAMPLE_SWEEP), "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "in use by another egostab command" in err and "\n" not in err
+        assert not (tmp_path / "runs").exists()
+    assert not (tmp_path / LOCK_FILE).exists()
