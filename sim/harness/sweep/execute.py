@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sim.harness.interrupts import Interrupted
-from sim.harness.runner import INTERRUPTED, RunConfig, run
+from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
@@ -109,9 +109,10 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
     if not pending:
         return
     workers = min(workers or os.cpu_count() or 1, len(pending))
-    pool = ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=limit_threads)
+    context = multiprocessing.get_context("spawn")
+    stopping = context.Event()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                               initializer=_start_worker, initargs=(stopping,))
     try:
         futures = {pool.submit(_run_unless_stopped, run_fn, sweep_run.config): sweep_run
                    for sweep_run in pending}
@@ -123,6 +124,7 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
                 yield (RunOutcome(futures[future], None, error=_describe(error)) if error
                        else RunOutcome(futures[future], future.result()))
     except BaseException as error:
+        stopping.set()  # no worker starts another run
         # Ctrl-C reaches the workers from the terminal; SIGTERM and SIGHUP reach only this
         # process, so pass those on: each started run then ends with complete files. A second
         # signal on top of a Ctrl-C would cut a run's final writes short.
@@ -134,25 +136,23 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-#: In a worker process: whether a run of this worker was interrupted.
-_worker_stopped = False
+#: In a worker process: set when the sweep is stopping (its parent was interrupted).
+_stopping = None
+
+
+def _start_worker(stopping) -> None:
+    """A pool worker's initializer: one thread per library, and the parent's stop event."""
+    global _stopping
+    limit_threads()
+    _stopping = stopping
 
 
 def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
-    """``run_fn(config)`` in a pool's worker, unless a run of this worker was interrupted
-    before: the pool hands a worker one more queued run than it can cancel, and a stopped
-    sweep must not start it."""
-    global _worker_stopped
-    if _worker_stopped:
+    """``run_fn(config)`` in a pool's worker, unless the sweep is stopping: the pool hands a
+    worker one more queued run than it can cancel, and a stopped sweep must not start it."""
+    if _stopping is not None and _stopping.is_set():
         raise KeyboardInterrupt("not started: the runs were interrupted")
-    try:
-        metrics = run_fn(config)
-    except KeyboardInterrupt:
-        _worker_stopped = True
-        raise
-    if metrics.get("status") == INTERRUPTED:
-        _worker_stopped = True
-    return metrics
+    return run_fn(config)
 
 
 def _import_ray():

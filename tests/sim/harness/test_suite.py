@@ -429,15 +429,13 @@ def test_an_interrupted_recording_is_not_scored_and_is_recorded_again(tmp_path, 
     assert sequence["ended"] == "complete" and sequence["frames"] == 6
 
 
-def test_a_stopped_worker_starts_no_queued_run(monkeypatch):
-    ran = []
+def test_a_stopped_sweep_starts_no_queued_run(monkeypatch):
+    import threading
 
-    def fake(config):
-        ran.append(config)
-        return {"status": "interrupted"}
-
-    monkeypatch.setattr(sweep_execute, "_worker_stopped", False)
-    assert sweep_execute._run_unless_stopped(fake, "first")["status"] == "interrupted"
+    ran, stopping = [], threading.Event()
+    monkeypatch.setattr(sweep_execute, "_stopping", stopping)
+    assert sweep_execute._run_unless_stopped(ran.append, "first") is None
+    stopping.set()  # the parent was interrupted
     with pytest.raises(KeyboardInterrupt, match="not started"):
-        sweep_execute._run_unless_stopped(fake, "queued")
+        sweep_execute._run_unless_stopped(ran.append, "queued")
     assert ran == ["first"]
