@@ -319,7 +319,12 @@ def read_truth_csv(path: Path, n_frames: int) -> list[TruthRow]:
     """truth.csv's rows, checked: every column, frames 0..n_frames-1 in order, each frame's
     reference the frame itself or an earlier one. UTF-8, with or without a byte-order mark (a
     table saved again by a spreadsheet)."""
-    with open(path, newline="", encoding="utf-8-sig") as handle:
+    try:
+        handle = open(path, newline="", encoding="utf-8-sig")
+    except OSError as error:  # missing, a folder in its place, no permission
+        raise FileValueError(str(path), "file", f"cannot be read ({error.strerror})",
+                             "a readable truth.csv, as `egostab record` writes it") from None
+    with handle:
         try:
             reader = csv.DictReader(handle)
             missing = [name for name in TRUTH_COLUMNS if name not in (reader.fieldnames or ())]
@@ -410,6 +415,9 @@ def load_sequence(path: str | Path) -> LoadedSequence:
     except FileNotFoundError:
         raise FileValueError(str(json_path), "file", "is missing",
                              "a sequence folder written by `egostab record`") from None
+    except OSError as error:  # a folder in its place, no permission
+        raise FileValueError(str(json_path), "file", f"cannot be read ({error.strerror})",
+                             "a readable file, as `egostab record` writes it") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise FileValueError(str(json_path), "content", f"is not JSON ({error})",
                              "a JSON object") from None

@@ -75,6 +75,11 @@ def _edit_truth(edit):
     return damage
 
 
+def _folder_in_place_of(path):
+    path.unlink()
+    path.mkdir()
+
+
 def _set_cell(text: str, frame: int, column: str, value: str) -> str:
     lines = text.splitlines()
     header = lines[0].split(",")
@@ -111,6 +116,9 @@ def test_a_truth_table_saved_with_a_byte_order_mark_reads_the_same(sequence_dir,
     (_set_json("intrinsics", {"width": 176, "height": 144, "fx": 1, "fy": 1, "cx": 0}),
      "sequence.json: intrinsics.cy: is missing"),
     (_set_json("sim_time_s", "abc"), "sequence.json: sim_time_s"),
+    (lambda folder: _folder_in_place_of(folder / "truth.csv"), "truth.csv: file: cannot be read"),
+    (lambda folder: _folder_in_place_of(folder / "sequence.json"),
+     "sequence.json: file: cannot be read"),
     (_set_json("fall", "x"), "sequence.json: fall"),
     (_set_json("scenario", [1, 2]), "sequence.json: scenario"),
     (_set_json("depth_unit_m", "0.0001"), "sequence.json: depth_unit_m: is '0.0001'; allowed"),
