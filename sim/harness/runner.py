@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -458,6 +459,21 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
     return metrics
 
 
+#: Where a run over a finished run is written until it finishes (:class:`Scoring`).
+STAGING_FOLDER = ".egostab-rerun"
+
+
+def _finished_run(run_dir: Path) -> bool:
+    """Whether ``run_dir`` holds a run that finished ("complete" or "fell")."""
+    import json
+
+    try:
+        status = json.loads((run_dir / "metrics.json").read_text(encoding="utf-8")).get("status")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return status in (COMPLETE, FELL)
+
+
 class Scoring:
     """What a run (or a score of a sequence) has done so far, and its run folder.
 
@@ -473,9 +489,14 @@ class Scoring:
                  meta: Mapping[str, Any], world_model=None):
         from sim.harness.scoring import ItfAccumulator
 
-        self.scenario, self.methods, self.out_dir = scenario, methods, out_dir
-        out_dir.mkdir(parents=True, exist_ok=True)
-        self.recording_path = out_dir / RECORDING_RRD if record else None
+        self.scenario, self.methods = scenario, methods
+        # A run over a finished one is written beside it and replaces it only once finished
+        # itself: an interrupt or an error then leaves the finished run as it was.
+        self.final_dir = Path(out_dir)
+        self.out_dir = (self.final_dir / STAGING_FOLDER if _finished_run(self.final_dir)
+                        else self.final_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.recording_path = self.out_dir / RECORDING_RRD if record else None
         self.scenario_dict = scenario.to_dict()
         self.meta: dict[str, Any] = {
             "seed": scenario.seed, "methods": list(methods),
@@ -570,7 +591,25 @@ class Scoring:
             "reference_analysis_ms": {m: (sum(v) / len(v) if v else math.nan)
                                       for m, v in analysis_ms.items()},
         })
-        return self.write(final=True)
+        try:
+            return self.write(final=True)
+        finally:
+            self._settle()
+
+    def _settle(self) -> None:
+        """A run written beside a finished one: its files replace the finished run's when it
+        finished too (metrics.json last, each file atomically), and go otherwise."""
+        if self.out_dir == self.final_dir:
+            return
+        from sim.harness.report import METRICS_JSON
+
+        staged = self.out_dir / METRICS_JSON
+        if self.status in (COMPLETE, FELL) and staged.is_file():
+            for path in sorted(self.out_dir.iterdir()):
+                if path.is_file() and path.name != METRICS_JSON:
+                    os.replace(path, self.final_dir / path.name)
+            os.replace(staged, self.final_dir / METRICS_JSON)
+        shutil.rmtree(self.out_dir, ignore_errors=True)
 
 
 @dataclass(frozen=True)

@@ -173,6 +173,28 @@ def test_a_sequence_without_frames_scores_as_an_empty_run_with_workers(folders, 
     assert metrics["status"] == "complete" and metrics["summary"]["n_frames"] == 0
 
 
+def test_an_interrupted_run_over_a_finished_one_leaves_it_as_it_was(folders, tmp_path,
+                                                                     interrupt_ground_truth):
+    from sim.harness.runner import STAGING_FOLDER
+
+    out = tmp_path / "out"
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out), methods=("ecc",),
+                      record=False, workers=1))
+    before = {path.name: path.read_bytes() for path in out.iterdir()}
+    interrupt_ground_truth(3)
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                                methods=("ecc", "sift"), record=False, workers=1))
+    assert metrics["status"] == "interrupted"
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == before
+    # Finished, the new run replaces the old one.
+    rerun = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                              methods=("ecc", "sift"), record=False, workers=1))
+    assert rerun["status"] == "complete"
+    assert json.loads((out / "metrics.json").read_text())["summary"]["methods"] == ["ecc",
+                                                                                   "sift"]
+    assert not (out / STAGING_FOLDER).exists()
+
+
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())
