@@ -432,6 +432,10 @@ def _check_sensor(scenario: Scenario, source: str) -> None:
         raise ScenarioError(source, "sensor.fps", f"{sensor.fps} frames/s leaves less than the "
                             f"integration time {params.integration_time_s} s per frame",
                             f"fps < {1.0 / params.integration_time_s:.1f}")
+    if math.floor(scenario.duration_s * sensor.fps) < 1:
+        raise ScenarioError(source, "duration_s", f"{scenario.duration_s} s holds no frame at "
+                            f"{sensor.fps} frames/s", f"at least one frame period, "
+                            f"{1.0 / sensor.fps:.4f} s")
 
 
 def _check_methods(scenario: Scenario, source: str) -> None:

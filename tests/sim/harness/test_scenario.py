@@ -112,6 +112,7 @@ frame_stride = 3
     ('scene = "kitchen"\n', "scene", "corridor"),
     ('scene = "lab"\nduration_s = "long"\n', "duration_s", "duration_s <="),
     ('scene = "lab"\nduration_s = -1.0\n', "duration_s", "0 < duration_s"),
+    ('scene = "lab"\nduration_s = 0.001\n', "duration_s", "at least one frame period"),
     ('scene = "lab"\nscene_seed = 1.5\n', "scene_seed", "integer"),
     ('scene = "lab"\nseed = true\n', "seed", "integer"),
     ('scene = "lab"\nseed = 9223372036854775808\n', "seed", "2**63 - 1"),
