@@ -459,8 +459,10 @@ def _replace_checked(cls, base, overrides: Mapping, key: str, source: str):
         _coerce(value, hints[name], source, f"{key}.{name}", f"a {hints[name].__name__}")
     try:
         return dataclasses.replace(base, **overrides)
-    except ValueError as error:
-        raise ScenarioError(source, key, str(error), f"valid {cls.__name__} values") from None
+    except ValueError as error:  # the class's own check: it may say what is allowed
+        problem, _, allowed = str(error).partition("; allowed: ")
+        raise ScenarioError(source, key, problem,
+                            allowed or f"valid {cls.__name__} values") from None
 
 
 def _set_dotted(raw: dict, dotted: str, value, source: str) -> None:
