@@ -58,6 +58,11 @@ SPEED_OF_LIGHT_M_S = 299_792_458.0
 MAX_FPS = 54.0
 
 
+#: Largest range noise sigma a ToFParams takes (metres): the presets' cap of 0.05 m scaled by the
+#: scenarios' largest noise_scale, 100. Beyond some 1e154 m its square overflows.
+MAX_NOISE_SIGMA_M = 5.0
+
+
 @dataclass(frozen=True)
 class ToFParams:
     """Parameters of the SR4000 model; defaults are the datasheet's (docs/sensor.md).
@@ -135,12 +140,15 @@ class ToFParams:
             "min_amplitude": (self.min_amplitude >= 0, ">= 0"),
             "saturation_amplitude": (self.saturation_amplitude > self.min_amplitude,
                                      "> min_amplitude"),
-            "noise_sigma_ref_m": (self.noise_sigma_ref_m >= 0, ">= 0"),
+            # At most MAX_NOISE_SIGMA_M: 100 times the presets' caps, far beyond any sensor.
+            "noise_sigma_ref_m": (0 <= self.noise_sigma_ref_m <= MAX_NOISE_SIGMA_M,
+                                  f"0 to {MAX_NOISE_SIGMA_M} m"),
             "noise_sigma_min_m": (0 <= self.noise_sigma_min_m <= self.noise_sigma_ref_m
                                   or self.noise_sigma_ref_m == 0,
                                   ">= 0 and <= noise_sigma_ref_m (unless noise is off)"),
-            "noise_sigma_max_m": (self.noise_sigma_max_m >= self.noise_sigma_min_m,
-                                  ">= noise_sigma_min_m"),
+            "noise_sigma_max_m": (self.noise_sigma_min_m <= self.noise_sigma_max_m
+                                  <= MAX_NOISE_SIGMA_M,
+                                  f">= noise_sigma_min_m, at most {MAX_NOISE_SIGMA_M} m"),
             "wiggle_amplitude_m": (self.wiggle_amplitude_m >= 0, ">= 0"),
             "wiggle_phase_rad": (math.isfinite(self.wiggle_phase_rad), "finite"),
             "quantization_bits": (0 <= self.quantization_bits <= 32, "0 (off) to 32"),

@@ -6,6 +6,11 @@ import math
 from dataclasses import dataclass, fields
 
 
+#: Shortest and longest step: ten control periods (0.01 s) at least, so that a step is a
+#: trajectory the controller follows; a step of a minute is standing still.
+MIN_STEP_PERIOD_S, MAX_STEP_PERIOD_S = 0.1, 60.0
+
+
 @dataclass(frozen=True)
 class GaitParams:
     """Parameters of the ZMP-preview walking gait.
@@ -69,6 +74,9 @@ class GaitParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"GaitParams.{name} must be > 0, got {getattr(self, name)!r}")
+        if not MIN_STEP_PERIOD_S <= self.step_period_s <= MAX_STEP_PERIOD_S:
+            raise ValueError(f"GaitParams.step_period_s={self.step_period_s!r} is out of "
+                             f"range; allowed: {MIN_STEP_PERIOD_S} to {MAX_STEP_PERIOD_S} s")
         if not 0.0 < self.double_support_ratio < 1.0:
             raise ValueError("GaitParams.double_support_ratio must be in (0, 1), "
                              f"got {self.double_support_ratio!r}")
