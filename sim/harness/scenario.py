@@ -426,8 +426,13 @@ def _check_gait(scenario: Scenario, source: str) -> None:
 
 def _check_sensor(scenario: Scenario, source: str) -> None:
     sensor = scenario.sensor
-    params = _replace_checked(ToFParams, sensor.scaled_preset(), sensor.overrides,
-                              "sensor.overrides", source)
+    try:
+        scaled = sensor.scaled_preset()
+    except ValueError as error:  # the scaled sigmas beyond ToFParams's range
+        problem, _, allowed = str(error).partition("; allowed: ")
+        raise ScenarioError(source, "sensor.noise_scale", problem,
+                            allowed or "a smaller noise_scale") from None
+    params = _replace_checked(ToFParams, scaled, sensor.overrides, "sensor.overrides", source)
     if params.integration_time_s >= 1.0 / sensor.fps:
         raise ScenarioError(source, "sensor.fps", f"{sensor.fps} frames/s leaves less than the "
                             f"integration time {params.integration_time_s} s per frame",

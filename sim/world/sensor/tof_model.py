@@ -58,9 +58,10 @@ SPEED_OF_LIGHT_M_S = 299_792_458.0
 MAX_FPS = 54.0
 
 
-#: Largest range noise sigma a ToFParams takes (metres): the presets' cap of 0.05 m scaled by the
-#: scenarios' largest noise_scale, 100. Beyond some 1e154 m its square overflows.
-MAX_NOISE_SIGMA_M = 5.0
+#: Largest range noise sigma a ToFParams takes (metres): above the presets' largest cap (0.15 m,
+#: high_noise) scaled by the scenarios' largest noise_scale, 100. Beyond some 1e154 m its square
+#: overflows.
+MAX_NOISE_SIGMA_M = 20.0
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,7 @@ class ToFParams:
             "min_amplitude": (self.min_amplitude >= 0, ">= 0"),
             "saturation_amplitude": (self.saturation_amplitude > self.min_amplitude,
                                      "> min_amplitude"),
-            # At most MAX_NOISE_SIGMA_M: 100 times the presets' caps, far beyond any sensor.
+            # At most MAX_NOISE_SIGMA_M: above 100 times the presets' caps, beyond any sensor.
             "noise_sigma_ref_m": (0 <= self.noise_sigma_ref_m <= MAX_NOISE_SIGMA_M,
                                   f"0 to {MAX_NOISE_SIGMA_M} m"),
             "noise_sigma_min_m": (0 <= self.noise_sigma_min_m <= self.noise_sigma_ref_m

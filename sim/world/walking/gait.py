@@ -9,6 +9,9 @@ from dataclasses import dataclass, fields
 #: Shortest and longest step: ten control periods (0.01 s) at least, so that a step is a
 #: trajectory the controller follows; a step of a minute is standing still.
 MIN_STEP_PERIOD_S, MAX_STEP_PERIOD_S = 0.1, 60.0
+#: Highest centre of mass the walking model takes: six times this 0.6 m robot's (0.33 m); far
+#: higher, the preview controller's Riccati equation has no finite solution.
+MAX_COM_HEIGHT_M = 2.0
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,9 @@ class GaitParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"GaitParams.{name} must be > 0, got {getattr(self, name)!r}")
+        if self.com_height_m > MAX_COM_HEIGHT_M:
+            raise ValueError(f"GaitParams.com_height_m={self.com_height_m!r} is out of range; "
+                             f"allowed: 0 to {MAX_COM_HEIGHT_M} m")
         if not MIN_STEP_PERIOD_S <= self.step_period_s <= MAX_STEP_PERIOD_S:
             raise ValueError(f"GaitParams.step_period_s={self.step_period_s!r} is out of "
                              f"range; allowed: {MIN_STEP_PERIOD_S} to {MAX_STEP_PERIOD_S} s")

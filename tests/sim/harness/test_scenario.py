@@ -116,7 +116,9 @@ frame_stride = 3
     ('scene = "lab"\n[sensor.overrides]\nquantization_bits = 33\n', "sensor.overrides",
      "0 (off) to 32"),
     ('scene = "lab"\n[sensor.overrides]\nnoise_sigma_ref_m = 1e300\n', "sensor.overrides",
-     "0 to 5.0 m"),
+     "0 to 20.0 m"),
+    ('scene = "lab"\n[gait.overrides]\ncom_height_m = 1e20\n', "gait.overrides",
+     "0 to 2.0 m"),
     ('scene = "lab"\n[gait.overrides]\nstep_period_s = 1e-6\n', "gait.overrides",
      "0.1 to 60.0 s"),
     ('scene = "lab"\nscene_seed = 1.5\n', "scene_seed", "integer"),
@@ -339,3 +341,12 @@ def test_a_push_on_the_standing_robot_moves_it_mostly_by_impulse_over_mass():
     gained = (momentum - twin) / mass
     assert 0.7 * 1.5 / mass < gained[1] <= 1.5 / mass + 1e-9
     assert abs(gained[0]) < 0.05 * gained[1]
+
+
+def test_every_sensor_preset_takes_the_largest_noise_scale(tmp_path):
+    from sim.world.sensor.tof_model import TOF_PRESETS
+
+    for preset in TOF_PRESETS:
+        scenario = load_scenario(write(tmp_path, f'scene = "lab"\n[sensor]\npreset = "{preset}"\n'
+                                                 f'noise_scale = 100.0\n'))
+        assert scenario.sensor.noise_scale == 100.0
