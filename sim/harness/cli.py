@@ -55,8 +55,6 @@ def _method_list(text: str) -> tuple[str, ...]:
     return available_methods() if text == "all" else _methods(text)
 
 
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     from sim.harness.runner import RunConfig, run, scenario_name
     from sim.harness.report import terminal_summary

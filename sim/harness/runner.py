@@ -465,13 +465,12 @@ STAGING_FOLDER = ".egostab-rerun"
 
 def _finished_run(run_dir: Path) -> bool:
     """Whether ``run_dir`` holds a run that finished ("complete" or "fell")."""
-    import json
+    from sim.harness.report import read_metrics
 
     try:
-        status = json.loads((run_dir / "metrics.json").read_text(encoding="utf-8")).get("status")
-    except (OSError, ValueError, AttributeError):
+        return read_metrics(run_dir)["status"] in (COMPLETE, FELL)
+    except ValueError:  # no metrics.json, or not a run's
         return False
-    return status in (COMPLETE, FELL)
 
 
 class Scoring:

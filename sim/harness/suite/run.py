@@ -84,7 +84,7 @@ def _recorded_as_planned(sequence: Path, config: RunConfig) -> bool:
     scenario ``config`` asks for (with its seed and overrides) and of its number of frames
     (fewer after a fall). A change to the suite file's ``max_frames`` or overrides is
     recorded anew."""
-    from sim.harness.runner import _configured_scenario, frame_count
+    from sim.harness.runner import frame_count
     from sim.harness.sequence import load_sequence
     from sim.harness.validation import FileValueError
 
@@ -94,9 +94,9 @@ def _recorded_as_planned(sequence: Path, config: RunConfig) -> bool:
         return False
     if recorded.ended not in ("complete", "fell"):
         return False
-    planned = {k: v for k, v in planned_scenario(config).items() if k != "source"}
-    frames = frame_count(_configured_scenario(config.scenario, config.seed, config.overrides),
-                         config.max_frames)
+    scenario, stored = planned_scenario(config)
+    planned = {k: v for k, v in stored.items() if k != "source"}
+    frames = frame_count(scenario, config.max_frames)
     return (recorded.scenario == planned
             and (recorded.n_frames == frames
                  or (recorded.ended == "fell" and recorded.n_frames <= frames)))

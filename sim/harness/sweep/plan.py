@@ -41,7 +41,7 @@ class SweepRun:
         """Whether a finished run's metrics come from this run's configuration: the scenario
         as resolved now (with its seed and overrides) and ``max_frames``. A sweep file changed
         since is run again."""
-        return (metrics.get("scenario") == planned_scenario(self.config)
+        return (metrics.get("scenario") == planned_scenario(self.config)[1]
                 and (metrics.get("run") or {}).get("max_frames") == self.config.max_frames)
 
 
@@ -61,15 +61,15 @@ class RunOutcome:
         return str((self.metrics or {}).get("status", "unknown"))
 
 
-def planned_scenario(config: RunConfig) -> dict:
-    """The scenario ``config`` runs, resolved (seed and overrides applied), as metrics.json
-    and sequence.json hold it (through JSON)."""
+def planned_scenario(config: RunConfig):
+    """The scenario ``config`` runs, resolved (seed and overrides applied), and its dict as
+    metrics.json and sequence.json hold it (through JSON)."""
     import json
 
     from sim.harness.runner import _configured_scenario
 
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
-    return json.loads(json.dumps(scenario.to_dict()))
+    return scenario, json.loads(json.dumps(scenario.to_dict()))
 
 
 def plan_sweep(spec: SweepSpec, out_dir: str | os.PathLike) -> list[SweepRun]:

@@ -55,7 +55,7 @@ def fake_run(config: RunConfig) -> dict:
                 *((math.nan,) * 3 if failed else (error, error, error)), 0.0, 0.0, 0.0, "ok",
                 0.1, 100, *((math.nan,) * 3 if failed else (error, error, error))))
     # The scenario and max_frames as run() writes them: resuming compares them with the plan.
-    write_run_outputs(run_dir, scenario=planned_scenario(config),
+    write_run_outputs(run_dir, scenario=planned_scenario(config)[1],
                       records=records, summary=summarize(records),
                       meta={"seed": config.seed, "max_frames": config.max_frames,
                             "parent_mark": PARENT_MARK}, status="complete", plots=False)
