@@ -10,16 +10,17 @@ figures, ``gate`` the CI regression gate, ``sweep`` many runs in parallel (local
 
 from __future__ import annotations
 
-from sim.harness.threads import limit_threads
-
-limit_threads()  # before anything below loads numpy or OpenCV
-
+# Only light modules here: the heavy ones (numpy, OpenCV, MuJoCo, the subcommands' modules: a
+# second) load within main(), where a stop signal ends the command with one line.
 import argparse
+import signal
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 from scenarios import DEFAULT_SCENARIO
-from sim.harness.suite.command import add_suite_parser
+from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
+                                    interrupt_reason, stop_signals_interrupt)
 from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
 
 #: Where runs write unless told otherwise: results/<scenario name>/.
@@ -119,14 +120,12 @@ def _cmd_score(args: argparse.Namespace) -> int:
     for path in estimates.values():
         read_estimates(Path(path), sequence.n_frames)
     out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
-    if out.resolve().is_relative_to(sequence.path.resolve()):
-        raise ValueError(f"--out {out}: is in the sequence folder; accepted: a folder of its "
-                         f"own for the run (default results/<sequence name>)")
+    # Built before the folder is made: ScoreConfig refuses a run folder in the sequence folder.
+    config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
+                         estimates=estimates, record=not args.no_record, workers=args.workers,
+                         progress=not args.quiet)
     out_dir = prepare_output_dir(out)
-    metrics = score(ScoreConfig(sequence=str(args.sequence), out_dir=str(out_dir),
-                                methods=args.methods, estimates=estimates,
-                                record=not args.no_record, workers=args.workers,
-                                progress=not args.quiet))
+    metrics = score(config)
     print(terminal_summary(metrics, out_dir))
     if metrics["run"].get("message"):
         print(f"Note: {metrics['run']['message']}")
@@ -206,13 +205,14 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
-    from sim.harness.runset import run_on_command_line
+    from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 
+    backend = command_line_backend(args.ray, args.ray_address)
     spec = load_sweep(args.sweep_file)
     out_dir = prepare_output_dir(args.out or default_sweep_dir(spec, DEFAULT_RESULTS))
-    return run_on_command_line("sweep", run_sweep, spec, out_dir,
-                               "ray" if args.ray else "local", args.workers, args.ray_address)
+    return run_on_command_line("sweep", run_sweep, spec, out_dir, backend, args.workers,
+                               args.ray_address)
 
 
 def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
@@ -342,8 +342,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="local processes (default: cores)")
     sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     sweep.add_argument("--ray-address", default=None,
-                       help="Ray address ('auto' = running cluster; default: start a local one)")
+                       help="with --ray: the Ray address ('auto' = running cluster; default: "
+                            "start a local one)")
     sweep.set_defaults(handler=_cmd_sweep)
+
+    from sim.harness.suite.command import add_suite_parser
 
     add_suite_parser(commands, DEFAULT_RESULTS)
     return parser
@@ -357,23 +360,46 @@ def _describe_os_error(error: OSError) -> str:
     return f"{where}{error.strerror or error}"
 
 
-def main(argv: list[str] | None = None) -> int:
-    from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
-
-    args = build_parser().parse_args(argv)
+def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> int:
+    """Run the ``egostab`` command ``argv`` (default: the process's arguments); return its exit
+    status. Bad input and a stop (Ctrl-C, SIGTERM, SIGHUP) are one line each, status 2 and
+    130, also during the imports; ``stops`` (:func:`console`'s) is told the command's name."""
+    command = "egostab"  # until the arguments are read
     try:
         with stop_signals_interrupt():
+            from sim.harness.threads import limit_threads
+
+            limit_threads()  # before anything loads numpy or OpenCV
+            args = build_parser().parse_args(argv)
+            command = f"egostab {args.command}"
+            if stops is not None:
+                stops.job = command
             return args.handler(args)
     except ValueError as error:  # bad input named by the layer that found it
-        print(f"egostab {args.command}: error: {error}", file=sys.stderr)
+        print(f"{command}: error: {error}", file=sys.stderr)
         return 2
     except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
-        print(f"egostab {args.command}: error: {_describe_os_error(error)}", file=sys.stderr)
+        print(f"{command}: error: {_describe_os_error(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:
-        print(f"egostab {args.command}: {interrupt_reason(interrupt)}", file=sys.stderr)
-        return 130
+        print(f"{command}: {interrupt_reason(interrupt)}", file=sys.stderr)
+        return INTERRUPTED_STATUS
+
+
+def console() -> NoReturn:
+    """The ``egostab`` process (pyproject's [project.scripts], ``python -m sim.harness.cli``):
+    :func:`main`, then the end of the process. A stop signal ends it with one line from here to
+    its end: within the command as :func:`main` says, before and after it at once
+    (:class:`ProcessStops`: no work is under way then, and the files are complete)."""
+    stops = ProcessStops("egostab")
+    stops.install(STOP_SIGNALS)  # main's stop block raises on them, then restores this
+    try:
+        status = main(stops=stops)
+        stops.install((signal.SIGINT,))  # main's Ctrl-C is Python's KeyboardInterrupt
+    except KeyboardInterrupt:  # a Ctrl-C just outside main's stop block
+        stops.stop(signal.SIGINT)
+    stops.exit(status)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

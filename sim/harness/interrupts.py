@@ -6,14 +6,21 @@ would otherwise kill the process where it stands and leave temporary files and n
 Within :func:`stop_signals_interrupt`, SIGTERM and SIGHUP raise :class:`Interrupted`, a
 ``KeyboardInterrupt``, so every job ends on them as it ends on Ctrl-C: what it finished is
 written out completely, with the status "interrupted" and the signal that stopped it.
+
+Outside a job, in an ``egostab`` process's start-up (its imports take a second) and clean-up,
+:class:`ProcessStops` ends the process at once on a stop signal, with the same one line.
 """
 
 from __future__ import annotations
 
+import atexit
+import os
 import signal
+import sys
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager, suppress
+from typing import NoReturn
 
 #: The signals that stop a job like Ctrl-C does.
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
@@ -39,7 +46,12 @@ def interrupt_reason(interrupt: KeyboardInterrupt) -> str:
     name = getattr(interrupt, "signal_name", None)
     if name not in STOP_SIGNAL_NAMES:
         name = _received[-1] if _received else None
-    return f"interrupted by {name}" if name else "interrupted by the user (Ctrl-C)"
+    return _reason(name)
+
+
+def _reason(signal_name: str | None) -> str:
+    """"interrupted by" the signal named, or by Ctrl-C (None)."""
+    return f"interrupted by {signal_name}" if signal_name else "interrupted by the user (Ctrl-C)"
 
 
 def _raise_interrupted(signum: int, frame) -> None:
@@ -64,3 +76,65 @@ def stop_signals_interrupt() -> Iterator[None]:
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
+
+
+#: Exit status of a process a stop ended: 128 + SIGINT, as shells report Ctrl-C.
+INTERRUPTED_STATUS = 130
+
+
+class ProcessStops:
+    """The stop signals of a whole command-line process (``egostab``), outside its job.
+
+    Before the job (Python's start-up, the imports) and after it (the clean-up), no work is
+    under way and every file the job wrote is complete, but a stop signal there would print a
+    traceback (Ctrl-C) or kill the process without a word (SIGTERM, SIGHUP: status 143, 129).
+    Installed for a signal, this ends the process at once instead, with one line on stderr,
+    ``<job>: interrupted by <signal>``, and status :data:`INTERRUPTED_STATUS`, as a stopped
+    job ends. The job itself runs within :func:`stop_signals_interrupt`, which restores this
+    handler after it.
+
+    :meth:`exit` ends the process once the job is done: Python's ``atexit`` callbacks still run
+    (with this handler in place: those registered after this object run before its own), then
+    the process ends without Python's final teardown of the modules, in which Python restores
+    the default handlers (a stop there, some tenths of a second after a sweep, would kill the
+    process silently). The standard streams are flushed first.
+    """
+
+    def __init__(self, job: str):
+        self.job = job  # what the line names; the command's name once it is known
+        self._status: int | None = None  # set by exit(): the job is done
+        atexit.register(self._end)
+
+    def install(self, numbers: Iterable[int]) -> None:
+        """Handle the signals ``numbers`` from now on; one the process was started ignoring
+        (``nohup``, a background job of a script) stays ignored."""
+        for number in numbers:
+            if signal.getsignal(number) is not signal.SIG_IGN:
+                signal.signal(number, self.stop)
+
+    def stop(self, signum: int, frame=None) -> NoReturn:
+        """End the process now, saying which signal stopped it (and, once the job is done,
+        that its files are complete)."""
+        reason = _reason(None if signum == signal.SIGINT else signal.Signals(signum).name)
+        after = ", while exiting (its files are complete)" if self._status is not None else ""
+        _flush_standard_streams()
+        with suppress(OSError):  # stderr closed: the status still says it
+            os.write(2, f"{self.job}: {reason}{after}\n".encode())
+        os._exit(INTERRUPTED_STATUS)
+
+    def exit(self, status: int) -> NoReturn:
+        """End the process with ``status`` (raises SystemExit; see the class docstring)."""
+        self._status = status
+        sys.exit(status)
+
+    def _end(self) -> None:
+        if self._status is not None:  # not after an uncaught exception: Python ends it then
+            _flush_standard_streams()
+            os._exit(self._status)
+
+
+def _flush_standard_streams() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        # Closed, a broken pipe, or a signal handled in the middle of a write to it.
+        with suppress(OSError, ValueError, RuntimeError, AttributeError):
+            stream.flush()

@@ -105,6 +105,16 @@ def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> 
     return str(found.resolve()) if is_path else entry
 
 
+def command_line_backend(ray: bool, ray_address: str | None) -> str:
+    """The backend of ``--ray`` ("ray" or "local"); a ValueError for ``--ray-address`` without
+    ``--ray``, which would otherwise go unused while the runs stay on this machine."""
+    if ray_address is not None and not ray:
+        raise ValueError(f"--ray-address needs --ray (got --ray-address {ray_address} alone); "
+                         f"accepted: --ray --ray-address ADDRESS, or no --ray-address to run "
+                         f"on this machine")
+    return "ray" if ray else "local"
+
+
 def run_on_command_line(kind: str, run: Callable[..., Any], spec: Any, out_dir: Path,
                         backend: str, workers: int | None, ray_address: str | None) -> int:
     """Run a sweep or suite for ``egostab sweep|suite``: print its tables, each failed run and

@@ -28,8 +28,9 @@ the dataclasses below, one per TOML table. Example::
     bump_height_m = 0.003                 # 0 to 0.005 m; bumps drawn from scene_seed
 
     [[pushes]]                            # pushes on the torso, in any order; default none
-    t = 5.0                               # start, s (before duration_s)
-    impulse_ns = [0.0, 1.5, 0.0]          # impulse, N s, world x, y, z (each -10 to 10)
+    t = 5.0                               # required: start, s (before duration_s)
+    impulse_ns = [0.0, 1.5, 0.0]          # required: impulse, N s, world x, y, z (each -10
+                                          # to 10)
     duration_s = 0.1                      # delivered as a constant force over this time, s
                                           # (a whole number of 0.0025 s physics steps)
 
@@ -52,8 +53,8 @@ the dataclasses below, one per TOML table. Example::
     enabled = true
     frame_stride = 1
 
-Any unknown key, wrong type or out-of-range value raises :class:`ScenarioError` (a ValueError)
-naming the file, the key and what is allowed.
+Any unknown key, missing required key, wrong type or out-of-range value raises
+:class:`ScenarioError` (a ValueError) naming the file, the key and what is allowed.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ import copy
 import dataclasses
 import math
 import typing
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -92,7 +94,8 @@ class ScenarioError(FileValueError):
 
 
 def _key(default, allowed: str, check=None, doc: str = ""):
-    """A dataclass field with its allowed values (text and check) beside its default."""
+    """A dataclass field with its allowed values (text and check) beside its default; a
+    ``dataclasses.MISSING`` default makes the key required."""
     factory = {"default_factory": default} if callable(default) else {"default": default}
     return field(**factory, metadata={"allowed": allowed, "check": check, "doc": doc})
 
@@ -115,8 +118,9 @@ class Push:
     x, y, z), delivered as a constant force ``impulse_ns / duration_s`` at its centre of mass
     (sim.world.walking.simulation.RobotSimulation.schedule_push)."""
 
-    t: float = _key(0.0, "a time >= 0 s, before duration_s", lambda v: 0 <= v <= MAX_DURATION_S)
-    impulse_ns: tuple = _key((0.0, 0.0, 0.0), f"three numbers [x, y, z], N s in the world "
+    t: float = _key(dataclasses.MISSING, "a time >= 0 s, before duration_s",
+                    lambda v: 0 <= v <= MAX_DURATION_S)
+    impulse_ns: tuple = _key(dataclasses.MISSING, f"three numbers [x, y, z], N s in the world "
                              f"frame, each -{MAX_PUSH_IMPULSE_NS:g} to {MAX_PUSH_IMPULSE_NS:g}")
     duration_s: float = _key(0.1, f"{PHYSICS_TIMESTEP_S:g} to {MAX_PUSH_DURATION_S:g} s, a "
                              f"whole number of physics steps ({PHYSICS_TIMESTEP_S:g} s)",
@@ -128,6 +132,12 @@ def _whole_steps(duration_s: float) -> bool:
     """True if ``duration_s`` is a whole number of physics steps (so the impulse is exact)."""
     steps = duration_s / PHYSICS_TIMESTEP_S
     return abs(steps - round(steps)) < 1e-6
+
+
+def _is_one_line(text: str) -> bool:
+    """True if ``text`` has no control character (line break, tab, escape...): the name heads
+    summary.md and labels table rows, where one would break the line."""
+    return not any(unicodedata.category(c) in ("Cc", "Zl", "Zp") for c in text)
 
 
 @dataclass(frozen=True)
@@ -209,7 +219,8 @@ class RecordingSpec:
 class Scenario:
     """One walking run, as loaded from a TOML file (see the module docstring for the layout)."""
 
-    name: str = _key("", "a name (default: the file's stem)")
+    name: str = _key("", "a name without control characters such as line breaks or tabs "
+                     "(default: the file's stem)", _is_one_line)
     description: str = _key("", "free text")
     scene: str = _key("corridor", f"one of {', '.join(SCENES)}", lambda v: v in SCENES)
     scene_seed: int = _key(0, "an integer from 0 to 2**63 - 1", lambda v: 0 <= v <= MAX_SEED)
@@ -307,6 +318,8 @@ def _check_table(cls, table: Mapping, prefix: str, source: str, nested=(), raw_k
                                 f"keys {', '.join(specs)}")
     values = {}
     for name, spec in specs.items():
+        if name not in table and _is_required(spec):
+            raise ScenarioError(source, prefix + name, "missing", spec.metadata["allowed"])
         if name not in table or (name in nested and name not in raw_keys):
             continue
         value = table[name]
@@ -323,6 +336,12 @@ def _check_table(cls, table: Mapping, prefix: str, source: str, nested=(), raw_k
                                 spec.metadata["allowed"])
         values[name] = value
     return values
+
+
+def _is_required(spec: dataclasses.Field) -> bool:
+    """True for a key the file must give: a field without a default (a push's time and
+    impulse: a push left without them is a slip, and a zero would hide it)."""
+    return spec.default is dataclasses.MISSING and spec.default_factory is dataclasses.MISSING
 
 
 def _coerce(value, kind, source, key, allowed):
@@ -371,9 +390,7 @@ def _check_pushes(raw_pushes, duration_s, source) -> tuple[Push, ...]:
         if not isinstance(table, Mapping):
             raise ScenarioError(source, f"pushes[{i}]", f"got {table!r}", allowed)
         values = _check_table(Push, table, f"pushes[{i}].", source, nested=("impulse_ns",))
-        if "impulse_ns" in table:
-            values["impulse_ns"] = _impulse(table["impulse_ns"], f"pushes[{i}].impulse_ns",
-                                            source)
+        values["impulse_ns"] = _impulse(table["impulse_ns"], f"pushes[{i}].impulse_ns", source)
         push = Push(**values)
         if not push.t < duration_s:
             raise ScenarioError(source, f"pushes[{i}].t", f"{push.t!r} is not before "

@@ -15,6 +15,7 @@ limits before they load.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import os
 from contextlib import contextmanager
@@ -37,7 +38,8 @@ class ScoreConfig:
 
     Attributes:
         sequence: a sequence folder (``egostab record``).
-        out_dir: run folder; created; files inside are replaced atomically.
+        out_dir: run folder, outside the sequence folder; created; files inside are replaced
+            atomically.
         methods: methods to run; None = the scenario's, unless estimate files are given
             (then only those are scored).
         estimates: method name -> CSV file of estimates made by another program.
@@ -54,6 +56,12 @@ class ScoreConfig:
     record: bool = True
     workers: int | None = 1
     progress: bool = False
+
+    def __post_init__(self):
+        # The run's files would mix with the sequence's.
+        if Path(self.out_dir).resolve().is_relative_to(Path(self.sequence).resolve()):
+            raise ValueError(f"--out {self.out_dir}: is in the sequence folder; accepted: a "
+                             f"folder of its own for the run (default results/<sequence name>)")
 
 
 def score(config: ScoreConfig) -> dict:
@@ -85,6 +93,8 @@ def score(config: ScoreConfig) -> dict:
                                          "message": sequence.header.get("message", "")},
                             "estimates": {name: str(path)
                                           for name, path in config.estimates.items()},
+                            "estimates_sha256": {name: estimation.sha256 for name, estimation
+                                                 in file_methods.items()},
                             "workers": workers})
     with _method_estimations(sequence, methods, workers,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
@@ -154,6 +164,7 @@ class FileEstimation:
     def __init__(self, path: str | os.PathLike, sequence):
         self.path, self.sequence = Path(path), sequence
         self.motions = read_estimates(self.path, sequence.n_frames)
+        self.sha256 = file_sha256(self.path)
         self.analysis_ms: list[float] = []
 
     def estimate(self, reference, frame):
@@ -164,6 +175,13 @@ class FileEstimation:
         _check_reference(self.sequence, reference, frame)
         motion = self.motions.get(frame.index) or Motion.failed(MISSING)
         return Estimate(motion, math.nan, compensate(frame.disparity8, motion))
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """The SHA-256 of a file's bytes, in hex: what tells a changed estimates file from the one
+    a run scored (a suite resumes a run only if its files are unchanged)."""
+    with open(path, "rb") as file:
+        return hashlib.file_digest(file, "sha256").hexdigest()
 
 
 def read_estimates(path: Path, n_frames: int) -> dict:

@@ -381,6 +381,11 @@ def _checked_header(header: dict, source: str) -> tuple[int, CameraIntrinsics,
     check(unit in DEPTH_UNITS_M, "depth_unit_m", unit, f"one of {DEPTH_UNITS_M}")
     unit = header.get("exact_depth_unit_m", _MISSING)
     check(unit == EXACT_DEPTH_UNIT_M, "exact_depth_unit_m", unit, f"{EXACT_DEPTH_UNIT_M}")
+    fps = header.get("fps", _MISSING)
+    check(is_finite_number(fps) and fps > 0, "fps", fps, "a finite number > 0 (frames/s)")
+    message = header.get("message", "")
+    check(isinstance(message, str), "message", message,
+          "text (why the recording ended early, or empty)")
     sim_time_s = header.get("sim_time_s")
     check(sim_time_s is None or (is_finite_number(sim_time_s) and sim_time_s >= 0),
           "sim_time_s", sim_time_s, "null or a finite number >= 0 (seconds)")

@@ -46,6 +46,11 @@ def is_finite_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
+def is_seed(value: Any) -> bool:
+    """True for an integer from 0 to ``MAX_SEED`` (what a scenario's seeds accept)."""
+    return is_int(value) and 0 <= value <= MAX_SEED
+
+
 def is_safe_name(value: Any) -> bool:
     """True for a non-empty string of ``SAFE_NAME`` characters."""
     return isinstance(value, str) and SAFE_NAME.match(value) is not None
@@ -76,8 +81,9 @@ def distinct_list(value: Any, key: str, fail: Fail, check: Callable[[Any], bool]
 def read_toml(path: Path, error: type[FileValueError] = FileValueError) -> dict:
     """The tables of the TOML file ``path``; a file that is not UTF-8 TOML raises ``error``."""
     try:
-        with open(path, "rb") as handle:
-            return tomllib.load(handle)
+        # utf-8-sig, as the CSVs: some editors (Notepad, PowerShell) start UTF-8 with a
+        # byte-order mark, which TOML does not allow.
+        return tomllib.loads(Path(path).read_bytes().decode("utf-8-sig"))
     except tomllib.TOMLDecodeError as problem:
         raise error(str(path), "(file)", f"not valid TOML ({problem})", "TOML 1.0") from None
     except UnicodeDecodeError:

@@ -29,32 +29,34 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
                             "scored and compared like a method; repeatable")
     suite.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     suite.add_argument("--ray-address", default=None,
-                       help="Ray cluster address ('auto', 'ray://host:10001'; default: "
-                            "$RAY_ADDRESS or a local instance)")
+                       help="with --ray: the Ray cluster address ('auto', 'ray://host:10001'; "
+                            "default: $RAY_ADDRESS or a local instance)")
     suite.set_defaults(handler=run_suite_command, results=results)
     return suite
 
 
 def _estimates(text: str) -> tuple[str, str]:
-    name, _, path = text.partition("=")
+    # Spaces around NAME and PATH are dropped, as `egostab score --estimates` drops them.
+    name, _, path = (part.strip() for part in text.partition("="))
     if not name or not path:
-        raise argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=PATH, {{sequence}} in PATH "
-                                         f"standing for each sequence's folder name")
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=PATH, NAME not blank, "
+                                         f"{{sequence}} in PATH standing for each sequence's "
+                                         f"folder name")
     return name, str(Path(path).absolute())  # the workers may run in another folder
 
 
 def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
     from sim.harness.atomic import prepare_output_dir
-    from sim.harness.runset import run_on_command_line
+    from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.score import estimates_by_name
     from sim.harness.suite.run import check_estimates, default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
+    backend = command_line_backend(args.ray, args.ray_address)
     spec = load_suite(args.suite_file)
     estimates = estimates_by_name(args.estimates)
     check_estimates(spec, estimates)  # before any folder is made
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
     return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates),
-                               spec, out_dir, "ray" if args.ray else "local", args.workers,
-                               args.ray_address)
+                               spec, out_dir, backend, args.workers, args.ray_address)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sim.harness.runner import RunConfig
+from sim.harness.score import file_sha256
 from sim.harness.suite.spec import SuiteSequence, SuiteSpec
 from sim.harness.suite.tables import SuiteResult, write_suite_outputs
 from sim.harness.sweep.execute import execute_plan
@@ -118,11 +119,21 @@ class SuiteRun:
     def made_by_this_plan(self, metrics: dict) -> bool:
         """Whether a finished run's metrics come from this run's configuration: its sequence
         recorded as planned now (:func:`_recorded_as_planned`) and its estimates files read
-        from the paths given now. A suite file or command changed since is run again."""
-        estimates = (metrics.get("run") or {}).get("estimates") or {}
-        return (all(estimates.get(name) == path for name, path in self.config.estimates.items())
+        from the paths given now, with the contents they have now. A suite file, command or
+        estimates file changed since is run again."""
+        run = metrics.get("run") or {}
+        paths, digests = run.get("estimates") or {}, run.get("estimates_sha256") or {}
+        return (all(paths.get(name) == path and digests.get(name) == _sha256_or_none(path)
+                    for name, path in self.config.estimates.items())
                 and _recorded_as_planned(Path(self.config.out_dir) / SEQUENCE_FOLDER,
                                          self.config))
+
+
+def _sha256_or_none(path: str) -> str | None:
+    try:
+        return file_sha256(path)
+    except OSError:  # gone or unreadable: the run scores it again, and says what is wrong
+        return None
 
 
 def plan_suite(spec: SuiteSpec, out_dir: str | os.PathLike,
@@ -190,7 +201,8 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
 
     Returns:
         A :class:`SuiteResult`; runs that raised are in ``result.failed``, not raised here.
-        The tables are written also when interrupted, from the runs finished by then.
+        The tables are written also when interrupted, from every finished run in the
+        folder (those finished before this call too: ``execute_plan``).
     """
     out_dir = Path(out_dir)
     estimates = dict(estimates or {})

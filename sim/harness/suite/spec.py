@@ -20,7 +20,7 @@ combination of its gaits, scene seeds and seeds. Example (the shipped suite is
     scenario = "corridor_straight"             # a shipped name, or a TOML path (relative
                                                # paths: from the suite file's folder)
     gaits = ["default", "paper_like"]          # values of gait.preset; default: the template's
-    scene_seeds = [1000, 1001]                 # integers >= 0, distinct
+    scene_seeds = [1000, 1001]                 # integers 0 to 2**63 - 1, distinct
     seeds = [0]                                # run seeds; default [0]
     overrides = { duration_s = 20.0 }          # optional: over the suite's overrides
 
@@ -44,7 +44,7 @@ from sim.harness.runner import scenario_name
 from sim.harness.runset import (check_header, check_methods, checked_overrides,
                                 read_runset_file, resolve_scenario_entry)
 from sim.harness.scenario import ScenarioError, load_scenario
-from sim.harness.validation import FileValueError, distinct_list, is_int
+from sim.harness.validation import FileValueError, distinct_list, is_seed
 
 #: Scenario keys a suite sets from its lists; overrides may not set them.
 VARIED_KEYS = ("gait.preset", "scene_seed", "seed")
@@ -63,8 +63,8 @@ ALLOWED = {
 SEQUENCE_ALLOWED = {
     "scenario": "a shipped scenario name or a TOML path",
     "gaits": "a non-empty list of distinct gait presets (sim.world.walking.gait.GAIT_PRESETS)",
-    "scene_seeds": "a non-empty list of distinct integers >= 0",
-    "seeds": "a non-empty list of distinct integers >= 0",
+    "scene_seeds": "a non-empty list of distinct integers from 0 to 2**63 - 1",
+    "seeds": "a non-empty list of distinct integers from 0 to 2**63 - 1",
     "overrides": ALLOWED["overrides"],
 }
 _REQUIRED = ("methods", "sequences")
@@ -187,10 +187,8 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
         raise SuiteError(source, "overrides", problem, ALLOWED["overrides"]) from None
     gaits = distinct_list(entry.get("gaits", [template.gait.preset]), "gaits", fail,
                           lambda v: isinstance(v, str) and bool(v))
-    scene_seeds = distinct_list(entry["scene_seeds"], "scene_seeds", fail,
-                                lambda v: is_int(v) and v >= 0)
-    seeds = distinct_list(entry.get("seeds", [0]), "seeds", fail,
-                          lambda v: is_int(v) and v >= 0)
+    scene_seeds = distinct_list(entry["scene_seeds"], "scene_seeds", fail, is_seed)
+    seeds = distinct_list(entry.get("seeds", [0]), "seeds", fail, is_seed)
     sequences = []
     for index, gait in enumerate(gaits):
         for scene_seed in scene_seeds:

@@ -19,7 +19,8 @@ from typing import Any, TypeVar
 
 from sim.harness.interrupts import Interrupted
 from sim.harness.runner import RunConfig, run
-from sim.harness.sweep.plan import RunOutcome, SweepRun, plan_sweep, split_done
+from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
+                                    plan_sweep, split_done)
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
 from sim.harness.threads import limit_threads, single_thread_environment_vars
@@ -57,7 +58,9 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
                  progress: bool = False, label: str = "runs") -> T:
     """Run the planned runs not yet done; then ``write_outputs`` of every outcome, in plan order.
 
-    The outputs are written also when the runs are interrupted, from the runs finished by then.
+    The outputs are written also when the runs are interrupted, from every finished run in the
+    folder: those finished by then, and those finished before this call that it has not run
+    anew yet (read back from their metrics.json; see :func:`_table_outcomes`).
 
     Args:
         plan: the planned runs (anything with ``.name``, ``.config`` and ``.scored``, the
@@ -86,9 +89,28 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
         for outcome in _with_progress(execute(pending, run_fn, workers, ray_address),
                                       len(pending), progress, label):
             outcomes[outcome.run.name] = outcome
-    finally:  # also on Ctrl-C: the tables show what finished
-        result = write_outputs(tuple(outcomes[r.name] for r in plan if r.name in outcomes))
+    finally:  # also on Ctrl-C: the tables show every finished run
+        result = write_outputs(_table_outcomes(plan, outcomes))
     return result
+
+
+def _table_outcomes(plan: Sequence[SweepRun],
+                    outcomes: dict[str, RunOutcome]) -> tuple[RunOutcome, ...]:
+    """The outcome the tables show of each planned run, in plan order: its outcome in this
+    call, unless it has none (not run yet: interrupted first) or was interrupted, and its folder
+    holds a run finished before this call; that one is shown then, read back from its
+    metrics.json. A run over a finished one (a method added to the file) replaces it only once
+    finished too, so an interrupt leaves the finished one there, and the tables keep it too."""
+    shown = []
+    for sweep_run in plan:
+        outcome = outcomes.get(sweep_run.name)
+        if outcome is None or not (outcome.error or outcome.status in DONE_STATUSES):
+            earlier = completed_metrics(sweep_run.config.out_dir)
+            if earlier is not None:
+                outcome = RunOutcome(sweep_run, earlier, skipped=True)
+        if outcome is not None:
+            shown.append(outcome)
+    return tuple(shown)
 
 
 def _with_progress(outcomes: Iterator[RunOutcome], total: int, progress: bool, label: str):

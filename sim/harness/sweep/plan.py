@@ -105,9 +105,9 @@ def default_sweep_dir(spec: SweepSpec, results: str | os.PathLike = "results") -
 def completed_metrics(run_dir: str | os.PathLike,
                       methods: Sequence[str] | None = None) -> dict | None:
     """The metrics of a finished run in ``run_dir`` (its metrics.json and frames.csv there)
-    that scored every method of ``methods`` (None: whichever it scored), or None if it must
-    (re)run: a method added to a sweep or suite file after its runs finished is scored when it
-    is run again."""
+    that holds the figures of every method of ``methods`` (None: whichever it scored), or None
+    if it must (re)run: a method added to a sweep or suite file after its runs finished is
+    scored when it is run again."""
     path = Path(run_dir) / METRICS_JSON
     # metrics.json is written last; a run folder that lost its per-frame table is not done.
     if not (path.is_file() and (Path(run_dir) / FRAMES_CSV).is_file()):
@@ -118,7 +118,8 @@ def completed_metrics(run_dir: str | os.PathLike,
         return None
     if document.get("status") not in DONE_STATUSES:
         return None
-    scored = set((document.get("summary") or {}).get("methods") or ())
+    # summary.run holds the figures the tables read: a method named without them is not done.
+    scored = set(document["summary"]["run"])
     return document if methods is None or scored.issuperset(methods) else None
 
 

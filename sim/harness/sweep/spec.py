@@ -9,7 +9,7 @@ simulated frames, so methods are not a run dimension). Example
     description = "error against sensor noise"
     scenarios = ["corridor_straight", "lab_clutter"]  # shipped names, or TOML paths
                                               # (relative paths: from the sweep file's folder)
-    seeds = [0, 1]                            # integers >= 0, distinct
+    seeds = [0, 1]                            # integers 0 to 2**63 - 1, distinct
     noise_levels = [0.5, 1.0, 2.0, 4.0]       # numbers, distinct; each is written to noise_key
     noise_key = "sensor.noise_scale"          # default; any dotted scenario key
     methods = ["t2fuzzy", "sift"]             # default: each scenario's own list; built-in
@@ -41,7 +41,7 @@ from sim.harness.runset import (check_header, check_methods, checked_overrides,
                                 read_runset_file, resolve_scenario_entry)
 from sim.harness.scenario import ScenarioError, load_scenario
 from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key,
-                                    is_finite_number, is_int)
+                                    is_finite_number, is_seed)
 
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
 #: Keys of a sweep file -> what is allowed (the module docstring shows them in use).
@@ -49,7 +49,7 @@ ALLOWED = {
     "name": "a non-empty name of letters, digits, '_', '-', '.' (default: the file's stem)",
     "description": "free text",
     "scenarios": "a non-empty list of distinct shipped scenario names or TOML paths",
-    "seeds": "a non-empty list of distinct integers >= 0",
+    "seeds": "a non-empty list of distinct integers from 0 to 2**63 - 1",
     "noise_levels": "a non-empty list of distinct finite numbers",
     "noise_key": "a dotted scenario key such as sensor.noise_scale",
     "methods": f"a non-empty list of distinct methods, each {ACCEPTED_FORMS}",
@@ -124,7 +124,7 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
 
     scenarios = distinct_list(raw["scenarios"], "scenarios", fail,
                               lambda v: isinstance(v, str) and bool(v.strip()))
-    seeds = distinct_list(raw["seeds"], "seeds", fail, lambda v: is_int(v) and v >= 0)
+    seeds = distinct_list(raw["seeds"], "seeds", fail, is_seed)
     noise_levels = tuple(float(v) for v in distinct_list(
         raw["noise_levels"], "noise_levels", fail, is_finite_number))
     methods = raw.get("methods")

@@ -214,6 +214,19 @@ def test_an_estimates_name_given_twice_is_refused(command, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("command", [["sweep", str(SCENARIOS_DIR / "sweeps" / "noise_sweep.toml")],
+                                     ["suite", str(SCENARIOS_DIR / "suites" / "ci_suite.toml")]])
+def test_a_ray_address_without_ray_is_refused_before_any_work(command, tmp_path, capsys,
+                                                              monkeypatch):
+    import sim.harness.runset as runset
+
+    monkeypatch.setattr(runset, "run_on_command_line",
+                        lambda *args, **kwargs: pytest.fail("the runs started"))
+    assert main([*command, "--ray-address", "auto", "--out", str(tmp_path / "out")]) == 2
+    assert "--ray-address needs --ray" in _one_line_error(capsys, command[0])
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):
     from sim.harness.ideal import MAX_IMAGE_PIXELS, load_image
 

@@ -1,4 +1,5 @@
-"""SIGTERM and SIGHUP end a job like Ctrl-C: complete files, status "interrupted" and why."""
+"""SIGTERM and SIGHUP end a job like Ctrl-C: complete files, status "interrupted" and why;
+before and after the job, the egostab process ends on them at once with the same one line."""
 
 from __future__ import annotations
 
@@ -8,10 +9,11 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 
 import pytest
 
-from scenarios import SCENARIOS_DIR
+from scenarios import SCENARIOS_DIR, SUITES_DIR
 from sim.harness.interrupts import Interrupted, interrupt_reason, stop_signals_interrupt
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
@@ -125,3 +127,86 @@ def test_a_run_stopped_while_its_recording_opens_ends_interrupted(tmp_path, monk
     assert not (run_dir / "recording.rrd").exists()
     assert RECORDING_NOTE not in (run_dir / "summary.md").read_text()
     assert not list(run_dir.glob(".*.tmp"))
+
+
+def _egostab_process(argv: list[str], hook: str) -> subprocess.Popen:
+    """``egostab argv`` as its console script runs it, after the Python code ``hook``. Ctrl-C
+    is Python's KeyboardInterrupt in it, as in a terminal (this test may run with it ignored)."""
+    code = (f"import atexit, importlib.abc, pathlib, signal, sys, time\n"
+            f"signal.signal(signal.SIGINT, signal.default_int_handler)\n{hook}\n"
+            f"sys.argv = ['egostab', *{argv!r}]\n"
+            f"from sim.harness.cli import console\nconsole()\n")
+    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+
+
+def _stopped_at(marker, process: subprocess.Popen, stop: signal.Signals) -> tuple[str, str]:
+    """Send ``stop`` once ``marker`` exists; the process's stdout and stderr."""
+    try:
+        _wait_for(marker.exists, 120)
+        process.send_signal(stop)
+        out, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    return out.decode(), err.decode()
+
+
+def _reason(stop: signal.Signals) -> str:
+    return ("interrupted by the user (Ctrl-C)" if stop == signal.SIGINT
+            else f"interrupted by {stop.name}")
+
+
+def test_the_console_script_is_the_process_entry_point():
+    scripts = tomllib.loads((SCENARIOS_DIR.parent / "pyproject.toml").read_text())["project"]
+    assert scripts["scripts"]["egostab"] == "sim.harness.cli:console"
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_during_the_imports_is_one_line_and_status_130(tmp_path, stop):
+    """egostab's imports take a second; the child stalls in its first import of numpy (which
+    comes after the console script's own import of the CLI) until the signal comes."""
+    marker, out_dir = tmp_path / "importing", tmp_path / "suite"
+    hook = (f"class StallAtNumpy(importlib.abc.MetaPathFinder):\n"
+            f"    def find_spec(self, name, path, target=None):\n"
+            f"        if name == 'numpy':\n"
+            f"            pathlib.Path({str(marker)!r}).touch()\n"
+            f"            time.sleep(120)\n"
+            f"sys.meta_path.insert(0, StallAtNumpy())")
+    process = _egostab_process(["suite", str(SUITES_DIR / "ci_suite.toml"), "--out",
+                                str(out_dir)], hook)
+    out, err = _stopped_at(marker, process, stop)
+    assert (process.returncode, err, out) == (130, f"egostab: {_reason(stop)}\n", "")
+    assert not out_dir.exists()
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_while_exiting_is_one_line_after_the_complete_output(tmp_path, stop):
+    """The stop comes after the command printed everything, while Python cleans up (here an
+    atexit callback registered during the command that stalls); without the fix SIGTERM and
+    SIGHUP killed the process silently there (143, 129), and after the callbacks Python's
+    teardown restores the default handlers, so the process must end before it."""
+    marker = tmp_path / "exiting"
+    hook = (f"def stall():\n"
+            f"    pathlib.Path({str(marker)!r}).touch()\n"
+            f"    time.sleep(120)\n"
+            f"class StallAtExit(importlib.abc.MetaPathFinder):\n"
+            f"    def find_spec(self, name, path, target=None):\n"
+            f"        if name == 'numpy':\n"
+            f"            sys.meta_path.remove(self)\n"
+            f"            atexit.register(stall)\n"
+            f"sys.meta_path.insert(0, StallAtExit())")
+    # Unstopped: the status and the output as they are, and no teardown (in which an object
+    # kept in sys.modules would be deleted), where a stop could not be answered.
+    torn_down = tmp_path / "torn_down"
+    complete = _egostab_process(["list"], f"class Probe:\n"
+                                          f"    def __del__(self):\n"
+                                          f"        pathlib.Path({str(torn_down)!r}).touch()\n"
+                                          f"sys.modules['teardown_probe'] = Probe()")
+    listing, nothing = complete.communicate(timeout=120)
+    assert (complete.returncode, nothing) == (0, b"") and listing.count(b"\n") >= 5
+    assert not torn_down.exists()
+    process = _egostab_process(["list"], hook)
+    out, err = _stopped_at(marker, process, stop)
+    assert process.returncode == 130
+    assert err == f"egostab list: {_reason(stop)}, while exiting (its files are complete)\n"
+    assert out == listing.decode()

@@ -206,6 +206,16 @@ def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     assert sorted(path.name for path in sequence.iterdir()) == before
 
 
+def test_the_python_api_refuses_a_run_folder_in_the_sequence_folder(folders):
+    sequence = folders / "sequence"
+    before = sorted(path.name for path in sequence.iterdir())
+    for out in (sequence, sequence / "runs" / "mine"):
+        with pytest.raises(ValueError, match="is in the sequence folder"):
+            score(ScoreConfig(sequence=str(sequence / "depth" / ".."), out_dir=str(out),
+                              methods=("ecc",), record=False))
+    assert sorted(path.name for path in sequence.iterdir()) == before
+
+
 def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     # A byte-order mark, CRLF line ends, quoted fields and an upper-case "OK" change nothing.
     plain = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv")

@@ -67,6 +67,15 @@ def _set_json(key, value):
     return damage
 
 
+def _drop_json(key):
+    def damage(folder):
+        path = folder / "sequence.json"
+        content = json.loads(path.read_text())
+        del content[key]
+        path.write_text(json.dumps(content))
+    return damage
+
+
 def _edit_truth(edit):
     """A damage that rewrites truth.csv as the bytes ``edit`` makes of its text."""
     def damage(folder):
@@ -116,6 +125,11 @@ def test_a_truth_table_saved_with_a_byte_order_mark_reads_the_same(sequence_dir,
     (_set_json("intrinsics", {"width": 176, "height": 144, "fx": 1, "fy": 1, "cx": 0}),
      "sequence.json: intrinsics.cy: is missing"),
     (_set_json("sim_time_s", "abc"), "sequence.json: sim_time_s"),
+    (_set_json("fps", "30"), "sequence.json: fps: is '30'; allowed: a finite number > 0"),
+    (_set_json("fps", 0), "sequence.json: fps: is 0"),
+    (_set_json("fps", float("inf")), "sequence.json: fps: is inf"),
+    (_drop_json("fps"), "sequence.json: fps: is missing"),
+    (_set_json("message", 5), "sequence.json: message: is 5; allowed: text"),
     (lambda folder: _folder_in_place_of(folder / "truth.csv"), "truth.csv: file: cannot be read"),
     (lambda folder: _folder_in_place_of(folder / "sequence.json"),
      "sequence.json: file: cannot be read"),

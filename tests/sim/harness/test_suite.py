@@ -90,9 +90,13 @@ def test_entry_overrides_apply_over_the_suites():
     (sequence_entry(gait="default"), "sequences[0].gait", "keys scenario, gaits"),
     ({"sequences": [{"scene_seeds": [5]}]}, "sequences[0].scenario", "shipped scenario name"),
     (sequence_entry(scenario="no_such_walk"), "sequences[0].scenario", "shipped scenario"),
-    (sequence_entry(scene_seeds=[5, -1]), "sequences[0].scene_seeds[1]", "integers >= 0"),
+    (sequence_entry(scene_seeds=[5, -1]), "sequences[0].scene_seeds[1]",
+     "integers from 0 to 2**63 - 1"),
+    (sequence_entry(scene_seeds=[2**63]), "sequences[0].scene_seeds[0]",
+     "integers from 0 to 2**63 - 1"),
     (sequence_entry(scene_seeds=[5, 5]), "sequences[0].scene_seeds[1]", "distinct"),
-    (sequence_entry(seeds=[True]), "sequences[0].seeds[0]", "integers >= 0"),
+    (sequence_entry(seeds=[True]), "sequences[0].seeds[0]", "integers from 0 to 2**63 - 1"),
+    (sequence_entry(seeds=[0, 2**63]), "sequences[0].seeds[1]", "integers from 0 to 2**63 - 1"),
     (sequence_entry(gaits=["limp"]), "sequences[0].gaits[0]", "GAIT_PRESETS"),
     (sequence_entry(gaits="default"), "sequences[0].gaits", "non-empty list"),
     (sequence_entry(overrides={"scene_seed": 1}), "sequences[0].overrides", "not gait.preset"),
@@ -285,6 +289,29 @@ def test_an_interrupted_suite_writes_the_tables_of_the_runs_finished(tmp_path, m
     assert len(json.loads((tmp_path / TABLE_JSON).read_text())["rows"]) == 2
 
 
+def test_a_rescore_interrupted_at_once_keeps_the_earlier_runs_in_the_tables(tmp_path,
+                                                                           monkeypatch):
+    """sift added to a suite whose runs scored t2fuzzy, stopped before any run finished anew:
+    the tables still count every sequence (sift has no figure yet)."""
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
+    for planned, error in zip(plan_suite(spec, tmp_path), (0.1, 0.3)):
+        fake_metrics(Path(planned.config.out_dir), {"t2fuzzy": error})
+
+    def interrupted_at_once(pending, run_fn, workers, ray_address):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_execute, "_run_local", interrupted_at_once)
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(spec, tmp_path)
+    document = json.loads((tmp_path / TABLE_JSON).read_text())
+    assert [entry["name"] for entry in document["sequences"]] == [
+        planned.name for planned in plan_suite(spec, tmp_path)]
+    assert document["means"]["t2fuzzy"][ROTATION]["mean"] == pytest.approx(0.2)
+    assert document["means"]["sift"][ROTATION]["n"] == 0
+    assert "2 planned, 2 finished (2 already done before this call)" in (
+        tmp_path / TABLE_MD).read_text()
+
+
 def test_bad_backend_and_workers_are_refused(tmp_path):
     with pytest.raises(ValueError, match="unknown backend .dask.; accepted: local, ray"):
         run_suite(small_spec(), tmp_path, backend="dask")
@@ -304,6 +331,18 @@ def test_estimates_files_that_cannot_be_scored_are_refused_before_any_work(
     with pytest.raises(ValueError, match=message):
         run_suite(small_spec(), tmp_path / "out", estimates=estimates)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argument", [" =mine/{sequence}.csv", "=mine/{sequence}.csv",
+                                      "mine= "])
+def test_an_estimates_argument_with_a_blank_name_or_path_is_refused(argument, capsys):
+    from sim.harness.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["suite", str(CI_SUITE), "--estimates", argument])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and err.count("\n") == 1
+    assert f"--estimates: {argument!r}: accepted: NAME=PATH, NAME not blank" in err
 
 
 # --- The CI suite, for real ------------------------------------------------------------------
@@ -357,14 +396,19 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     assert {method: widened_means[method] for method in ("t2fuzzy", "sift")} == document["means"]
     # Another program's estimates, one CSV per sequence (here the truth plus known offsets),
     # are scored and compared like a method.
-    for sequence in out.glob("runs/*/sequence"):
+    def write_estimates(sequence: Path, angle_offset_deg: float) -> None:
         with open(sequence / "truth.csv", newline="", encoding="utf-8") as handle:
             truth = list(csv.DictReader(handle))
         (tmp_path / f"{sequence.parent.name}.csv").write_text("frame,angle_deg,dx,dy\n" + "".join(
-            f"{row['frame']},{float(row['angle_deg']) + 0.5},{float(row['dx']) - 1.0},"
-            f"{row['dy']}\n" for row in truth))
-    assert run_command(["suite", str(widened), "--out", str(out), "--workers", "2",
-                        "--estimates", f"mine={tmp_path}/{{sequence}}.csv"]) == 0
+            f"{row['frame']},{float(row['angle_deg']) + angle_offset_deg},"
+            f"{float(row['dx']) - 1.0},{row['dy']}\n" for row in truth))
+
+    sequences = sorted(out.glob("runs/*/sequence"))
+    for sequence in sequences:
+        write_estimates(sequence, 0.5)
+    with_estimates = ["suite", str(widened), "--out", str(out), "--workers", "2",
+                      "--estimates", f"mine={tmp_path}/{{sequence}}.csv"]
+    assert run_command(with_estimates) == 0
     scored = json.loads((out / TABLE_JSON).read_text())
     assert scored["estimates"] == {"mine": f"{tmp_path}/{{sequence}}.csv"}
     mine = scored["means"]["mine"]
@@ -372,6 +416,12 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     assert mine["failure_rate"]["mean"] == 0.0
     assert ("t2fuzzy", "mine") in {(d["first"], d["second"]) for d in scored["differences"]}
     assert scored["means"]["ecc"] == widened_means["ecc"]
+    # An estimates file changed under the same path is scored again, and only its sequence.
+    write_estimates(sequences[0], 1.5)
+    assert run_command(with_estimates) == 0
+    assert "2 finished (1 already done before this call)" in (out / TABLE_MD).read_text()
+    rescored = json.loads((out / TABLE_JSON).read_text())["means"]
+    assert rescored["mine"][ROTATION]["mean"] == pytest.approx(1.0)
 
 
 def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):

@@ -8,6 +8,7 @@ whose errors grow with the noise level, so aggregation reads the real metrics.js
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 from pathlib import Path
@@ -18,9 +19,10 @@ from sim.harness.report import METRICS_JSON, read_metrics, write_run_outputs
 from sim.harness.runner import RunConfig
 from sim.harness.scenario import SCENARIOS_DIR
 from sim.harness.scoring import FrameRecord, summarize
-from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, SweepError,
-                               completed_metrics, expand_sweep, load_sweep, plan_sweep,
-                               run_sweep, sweep_from_dict)
+from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, RunOutcome,
+                               SweepError, completed_metrics, expand_sweep, load_sweep,
+                               plan_sweep, run_sweep, sweep_from_dict)
+from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep.plan import planned_scenario
 
 EXAMPLE_SWEEP = SCENARIOS_DIR / "sweeps" / "noise_sweep.toml"
@@ -132,11 +134,12 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"scenarios": []}, "scenarios", "non-empty list"),
     ({"scenarios": ["no_such_scenario"]}, "scenarios[0]", "shipped scenario names"),
     ({"scenarios": ["corridor_straight", "corridor_straight"]}, "scenarios[1]", "distinct"),
-    ({"seeds": []}, "seeds", "integers >= 0"),
-    ({"seeds": [0, -1]}, "seeds[1]", "integers >= 0"),
-    ({"seeds": [True]}, "seeds[0]", "integers >= 0"),
+    ({"seeds": []}, "seeds", "integers from 0 to 2**63 - 1"),
+    ({"seeds": [0, -1]}, "seeds[1]", "integers from 0 to 2**63 - 1"),
+    ({"seeds": [True]}, "seeds[0]", "integers from 0 to 2**63 - 1"),
     ({"seeds": [1, 1]}, "seeds[1]", "distinct"),
-    ({"seeds": [1.5]}, "seeds[0]", "integers >= 0"),
+    ({"seeds": [1.5]}, "seeds[0]", "integers from 0 to 2**63 - 1"),
+    ({"seeds": [0, 2**63]}, "seeds[1]", "integers from 0 to 2**63 - 1"),
     ({"noise_levels": ["high"]}, "noise_levels[0]", "finite numbers"),
     ({"noise_levels": [float("nan")]}, "noise_levels[0]", "finite numbers"),
     ({"noise_levels": [1, 1.0]}, "noise_levels[1]", "distinct"),
@@ -224,6 +227,55 @@ def test_a_finished_run_counts_as_done_only_for_the_methods_it_scored(tmp_path):
     assert completed_metrics(config.out_dir, (*config.methods, "ecc")) is None  # added later
     (Path(config.out_dir) / "frames.csv").unlink()  # a folder that lost its table: run again
     assert completed_metrics(config.out_dir, config.methods) is None
+
+
+def test_a_run_whose_metrics_lack_a_methods_figures_is_not_done_for_it(tmp_path):
+    spec = small_spec(scenarios=["corridor_straight"], seeds=[0], noise_levels=[1.0])
+    run_sweep(spec, tmp_path, workers=1, run_fn=fake_run)
+    run_dir = Path(plan_sweep(spec, tmp_path)[0].config.out_dir)
+    document = read_metrics(run_dir)
+    del document["summary"]["run"]["sift"]  # summary.methods still lists it
+    (run_dir / METRICS_JSON).write_text(json.dumps(document))
+    assert completed_metrics(run_dir, ("t2fuzzy",)) is not None
+    assert completed_metrics(run_dir, METHODS) is None
+    resumed = run_sweep(spec, tmp_path, workers=1, run_fn=fake_run)
+    assert not resumed.outcomes[0].skipped and calls(run_dir) == 2  # sift is scored again
+    assert [row["method"] for row in read_csv(tmp_path / "sweep.csv")] == list(METHODS)
+
+
+def test_an_interrupted_rescore_keeps_every_run_finished_before_in_the_tables(tmp_path,
+                                                                             monkeypatch):
+    """A method added to the file, then an interrupt: the runs not scored anew yet keep their
+    finished files (a run over a finished one replaces it only once finished), and the tables
+    keep them too, with the runs finished anew before the interrupt."""
+    first = small_spec(methods=["t2fuzzy"])
+    run_sweep(first, tmp_path, workers=2, run_fn=fake_run)
+    before = read_csv(tmp_path / "sweep.csv")
+    assert len(before) == 8
+    finished_anew = []
+
+    def interrupted_after(pending, run_fn, workers, ray_address):
+        for sweep_run in pending[:len(finished_anew)]:
+            yield RunOutcome(sweep_run, fake_run(sweep_run.config))
+        # A run interrupted with its metrics back: its folder still holds the finished run.
+        yield RunOutcome(pending[len(finished_anew)],
+                         {**read_metrics(pending[len(finished_anew)].config.out_dir),
+                          "status": "interrupted"})
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_execute, "_run_local", interrupted_after)
+    with pytest.raises(KeyboardInterrupt):  # stopped at once
+        run_sweep(small_spec(), tmp_path, workers=2, run_fn=fake_run)
+    assert read_csv(tmp_path / "sweep.csv") == before
+    assert "8 planned, 8 finished (8 already complete before this call)" in (
+        tmp_path / "sweep.md").read_text()
+
+    finished_anew.append(1)
+    with pytest.raises(KeyboardInterrupt):  # stopped after one run scored sift too
+        run_sweep(small_spec(), tmp_path, workers=2, run_fn=fake_run)
+    rows = read_csv(tmp_path / "sweep.csv")
+    assert [row["method"] for row in rows[:2]] == list(METHODS)
+    assert rows[0]["run"] == rows[1]["run"] == before[0]["run"] and rows[2:] == before[1:]
 
 
 def check_table(out_dir: Path, spec, expected_status: dict[str, str]) -> list[dict]:

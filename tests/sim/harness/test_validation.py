@@ -10,7 +10,7 @@ import pytest
 from sim.harness.scenario import ScenarioError
 from sim.harness.sweep import SweepError
 from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key,
-                                    is_finite_number, is_int, is_safe_name, read_toml)
+                                    is_finite_number, is_int, is_safe_name, is_seed, read_toml)
 
 
 def test_validation_helpers_accept_and_name_the_bad_item():
@@ -26,6 +26,8 @@ def test_validation_helpers_accept_and_name_the_bad_item():
     assert not any(is_finite_number(v) for v in (True, math.inf, math.nan, "1"))
     assert is_dotted_key("sensor.noise_scale") and not is_dotted_key("sensor..noise")
     assert is_safe_name("noise_sweep-2.b") and not is_safe_name("a/b") and not is_safe_name("")
+    assert is_seed(0) and is_seed(2**63 - 1)
+    assert not any(is_seed(v) for v in (-1, 2**63, True, 1.0))
 
 
 @pytest.mark.parametrize("kind", [FileValueError, ScenarioError, SweepError])
@@ -45,3 +47,10 @@ def test_a_file_that_is_not_toml_is_named(tmp_path, content, problem):
     path.write_bytes(content)
     with pytest.raises(SweepError, match=rf"{path}: \(file\): {problem}"):
         read_toml(path, SweepError)
+
+
+def test_a_file_saved_with_a_byte_order_mark_reads_the_same(tmp_path):
+    plain, marked = tmp_path / "plain.toml", tmp_path / "marked.toml"
+    plain.write_text('scene = "lab"\n[sensor]\nfps = 20.0\n', encoding="utf-8")
+    marked.write_text(plain.read_text(), encoding="utf-8-sig")
+    assert read_toml(marked) == read_toml(plain) == {"scene": "lab", "sensor": {"fps": 20.0}}
