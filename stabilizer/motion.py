@@ -52,8 +52,9 @@ class Motion:
         return self.status == OK
 
     @classmethod
-    def failed(cls, status: str, **diagnostics: Any) -> Motion:
-        """A Motion that carries no estimate, only the reason why."""
+    def failed(cls, status: str, /, **diagnostics: Any) -> Motion:
+        """A Motion that carries no estimate, only the reason why (``status``; the diagnostics
+        may hold a key "status" of their own)."""
         if status == OK:
             raise ValueError("a failed Motion needs a status other than 'ok'")
         return cls(math.nan, math.nan, math.nan, status, dict(diagnostics))

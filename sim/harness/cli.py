@@ -133,11 +133,9 @@ def _cmd_score(args: argparse.Namespace) -> int:
 
 
 def _cmd_ideal(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
     from sim.harness.ideal import IdealConfig, run_ideal
     from sim.harness.report import terminal_summary
 
-    prepare_output_dir(args.out)
     metrics = run_ideal(IdealConfig(image=args.image, out_dir=str(args.out),
                                     trajectory=args.trajectory, methods=args.methods,
                                     n_frames=args.frames, resize=args.resize))
@@ -193,7 +191,6 @@ def _cmd_gate(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.gate import run_gate
 
-    prepare_output_dir(args.out)
     if args.update_baseline:
         if args.baseline.is_dir():
             raise ValueError(f"--baseline {args.baseline}: is a folder; accepted: the path of "
@@ -326,7 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(handler=_cmd_bench)
 
     gate = commands.add_parser("gate", help="CI regression gate against results/baseline.json")
-    gate.add_argument("--baseline", type=Path, default=DEFAULT_RESULTS / "baseline.json")
+    gate.add_argument("--baseline", type=Path, default=DEFAULT_RESULTS / "baseline.json",
+                      help="the baseline to compare with (default: results/baseline.json, "
+                           "relative to the current folder: the repository's root)")
     gate.add_argument("--update-baseline", action="store_true",
                       help="rewrite the baseline with this run's metrics (on purpose)")
     gate.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "gate",
@@ -343,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     sweep.add_argument("--ray-address", default=None,
                        help="with --ray: the Ray address ('auto' = running cluster; default: "
-                            "start a local one)")
+                            "$RAY_ADDRESS, or else a local instance)")
     sweep.set_defaults(handler=_cmd_sweep)
 
     from sim.harness.suite.command import add_suite_parser

@@ -16,7 +16,7 @@ import math
 from pathlib import Path
 
 from scenarios import SCENARIOS_DIR
-from sim.harness.atomic import write_text_atomic
+from sim.harness.atomic import prepare_output_dir, write_text_atomic
 
 #: The CI scenario set: short walks (a few seconds each), run by ``egostab gate``.
 CI_SCENARIOS_DIR = SCENARIOS_DIR / "ci"
@@ -137,8 +137,9 @@ def read_baseline(path: Path) -> dict:
     """
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"no baseline at {path}; create it on purpose with "
-                         "`egostab gate --update-baseline`")
+        raise ValueError(f"no baseline at {path}; accepted: the committed one (run from the "
+                         "repository's root, or give --baseline PATH), or a new one made on "
+                         "purpose with `egostab gate --update-baseline`")
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as error:
@@ -207,6 +208,7 @@ def run_gate(baseline_path: Path, update: bool = False,
     if not update:
         baseline = read_baseline(Path(baseline_path))
         check_coverage(baseline, expected_coverage(), Path(baseline_path))
+    prepare_output_dir(Path(out_dir))  # after the baseline: a refused gate leaves no folder
     results = run_ci_scenarios(Path(out_dir))
     if update:
         write_baseline(Path(baseline_path), results)

@@ -178,6 +178,7 @@ def _within_size_limit(disparity: np.ndarray, image: str, resize: bool) -> np.nd
 
 def run_ideal(config: IdealConfig) -> dict:
     """Run the ideal experiment; write and return the metrics (metrics.json)."""
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.ground_truth import GroundTruth
     from sim.harness.report import write_run_outputs
     from sim.harness.runner import timed_estimate
@@ -188,6 +189,7 @@ def run_ideal(config: IdealConfig) -> dict:
     reference = load_image(config.image, config.scene_seed, config.resize)
     motions = load_trajectory(config.trajectory, config.n_frames)
     stabilizers = {method: method_factory(method)(reference) for method in methods}
+    prepare_output_dir(config.out_dir)  # after the inputs: a refused one leaves no folder
     rows, cols = np.nonzero(reference[::2, ::2])  # the walking truth's stride-2 sample
     source = np.stack([2 * cols, 2 * rows], axis=1)
     records = []

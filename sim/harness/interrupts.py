@@ -64,13 +64,16 @@ def _raise_interrupted(signum: int, frame) -> None:
 def stop_signals_interrupt() -> Iterator[None]:
     """Within the block, SIGTERM and SIGHUP raise :class:`Interrupted`; restored afterwards.
 
-    Signal handlers belong to the main thread: elsewhere the block runs unchanged.
+    A signal the process ignores stays ignored: ``nohup egostab suite ...`` must outlive the
+    terminal's SIGHUP. Signal handlers belong to the main thread: elsewhere the block runs
+    unchanged.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     _received.clear()
-    previous = {number: signal.signal(number, _raise_interrupted) for number in STOP_SIGNALS}
+    previous = {number: signal.signal(number, _raise_interrupted) for number in STOP_SIGNALS
+                if signal.getsignal(number) is not signal.SIG_IGN}
     try:
         yield
     finally:

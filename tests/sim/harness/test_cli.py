@@ -197,6 +197,18 @@ def test_a_baseline_that_is_a_folder_is_refused_before_the_gate_runs(tmp_path, c
     assert "is a folder" in _one_line_error(capsys, "gate")
 
 
+@pytest.mark.parametrize("command, message", [
+    (["ideal", "no_such_image.png"], "no_such_image.png"),
+    (["gate", "--baseline", "no_such_baseline.json"], "no baseline at no_such_baseline.json"),
+])
+def test_a_refused_command_leaves_no_output_folder(command, message, tmp_path, capsys,
+                                                   monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main([*command, "--out", str(tmp_path / "out")]) == 2
+    assert message in _one_line_error(capsys, command[0])
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_method_given_twice_is_refused(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["run", "--methods", "sift,ecc,sift", "--max-frames", "2"])

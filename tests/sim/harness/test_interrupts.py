@@ -31,6 +31,19 @@ def test_a_stop_signal_raises_interrupted_inside_the_block_only():
     assert signal.getsignal(signal.SIGTERM) is previous
 
 
+def test_an_ignored_stop_signal_stays_ignored_inside_the_block():
+    # nohup ignores SIGHUP so that a job outlives its terminal.
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with stop_signals_interrupt():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(0.2)  # nothing is raised
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, previous)
+
+
 def test_a_signal_raised_again_by_a_library_is_still_named():
     # MuJoCo's model compiler re-raises an interrupt in its callbacks with a message of its own,
     # or as a plain KeyboardInterrupt.

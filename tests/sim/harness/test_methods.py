@@ -116,6 +116,14 @@ def test_as_motion_keeps_a_good_motion_and_its_diagnostics():
     assert as_motion((True, 0.0, 0.0)).status == "wrong_type:bool"
 
 
+def test_a_failure_without_text_status_or_with_a_status_diagnostic_is_named():
+    # Motion.failed's status is positional-only: a diagnostic called "status" is data.
+    nameless = as_motion(Motion.failed(""))
+    assert nameless.status == "wrong_type:status" and nameless.diagnostics["status"] == "''"
+    failed = as_motion(Motion.failed("lost_track", status="searching"))
+    assert failed.status == "lost_track" and failed.diagnostics == {"status": "searching"}
+
+
 @pytest.mark.parametrize("name", available_methods())
 def test_a_built_in_name_is_built_by_stabilizer_as_before(frames, name):
     reference, current = frames
