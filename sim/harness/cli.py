@@ -13,6 +13,7 @@ from __future__ import annotations
 # Only light modules here: the heavy ones (numpy, OpenCV, MuJoCo, the subcommands' modules: a
 # second) load within main(), where a stop signal ends the command with one line.
 import argparse
+import os
 import signal
 import sys
 from pathlib import Path
@@ -22,6 +23,10 @@ from scenarios import DEFAULT_SCENARIO
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
 from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+
+#: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
+#: command that SIGPIPE ended.
+BROKEN_PIPE_STATUS = 141
 
 #: Where runs write unless told otherwise: results/<scenario name>/.
 DEFAULT_RESULTS = Path("results")
@@ -377,6 +382,9 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
     except ValueError as error:  # bad input named by the layer that found it
         print(f"{command}: error: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader has gone (`egostab list | head -1`): end quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return BROKEN_PIPE_STATUS
     except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
         print(f"{command}: error: {_describe_os_error(error)}", file=sys.stderr)
         return 2

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -207,6 +210,19 @@ def test_a_refused_command_leaves_no_output_folder(command, message, tmp_path, c
     assert main([*command, "--out", str(tmp_path / "out")]) == 2
     assert message in _one_line_error(capsys, command[0])
     assert not (tmp_path / "out").exists()
+
+
+def test_output_to_a_reader_that_has_gone_ends_quietly_with_status_141():
+    # `egostab list | head -1`: the pipe's reading end closed before the first line (-u: each
+    # line is written at once, inside the command).
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        done = subprocess.run([sys.executable, "-u", "-m", "sim.harness.cli", "list"],
+                              stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write_end)
+    assert done.returncode == 141 and done.stderr == ""
 
 
 def test_a_method_given_twice_is_refused(capsys):
