@@ -383,7 +383,7 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
         print(f"{command}: error: {error}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader has gone (`egostab list | head -1`): end quietly
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        _discard_output()
         return BROKEN_PIPE_STATUS
     except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
         print(f"{command}: error: {_describe_os_error(error)}", file=sys.stderr)
@@ -391,6 +391,29 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
     except KeyboardInterrupt as interrupt:
         print(f"{command}: {interrupt_reason(interrupt)}", file=sys.stderr)
         return INTERRUPTED_STATUS
+
+
+def _discard_output() -> None:
+    """Send what is left of stdout to /dev/null, so that Python's own last flush of it does not
+    fail again (with a second message and status 120)."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
+def _written_out(status: int, command: str) -> int:
+    """``status`` once the buffered output is written: a reader that has gone ends the command
+    quietly (:data:`BROKEN_PIPE_STATUS`); output that cannot be written (a full disk) is an
+    error, status 2, not a success."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        _discard_output()
+        return BROKEN_PIPE_STATUS
+    except OSError as error:
+        _discard_output()
+        print(f"{command}: error: its output could not be written: {_describe_os_error(error)}",
+              file=sys.stderr)
+        return status or 2
+    return status
 
 
 def console() -> NoReturn:
@@ -405,7 +428,7 @@ def console() -> NoReturn:
         stops.install((signal.SIGINT,))  # main's Ctrl-C is Python's KeyboardInterrupt
     except KeyboardInterrupt:  # a Ctrl-C just outside main's stop block
         stops.stop(signal.SIGINT)
-    stops.exit(status)
+    stops.exit(_written_out(status, stops.job))
 
 
 if __name__ == "__main__":

@@ -13,7 +13,6 @@ Outside a job, in an ``egostab`` process's start-up (its imports take a second) 
 
 from __future__ import annotations
 
-import atexit
 import os
 import signal
 import sys
@@ -96,17 +95,15 @@ class ProcessStops:
     job ends. The job itself runs within :func:`stop_signals_interrupt`, which restores this
     handler after it.
 
-    :meth:`exit` ends the process once the job is done: Python's ``atexit`` callbacks still run
-    (with this handler in place: those registered after this object run before its own), then
-    the process ends without Python's final teardown of the modules, in which Python restores
-    the default handlers (a stop there, some tenths of a second after a sweep, would kill the
-    process silently). The standard streams are flushed first.
+    :meth:`exit` ends the process once the job is done, as Python ends it: the ``atexit``
+    callbacks run with this handler in place, then Python's teardown of the modules, in which
+    Python restores the default handlers (a stop in those last tenths of a second ends the
+    process with the signal's own status and no line; the files are complete then too).
     """
 
     def __init__(self, job: str):
         self.job = job  # what the line names; the command's name once it is known
         self._status: int | None = None  # set by exit(): the job is done
-        atexit.register(self._end)
 
     def install(self, numbers: Iterable[int]) -> None:
         """Handle the signals ``numbers`` from now on; one the process was started ignoring
@@ -129,11 +126,6 @@ class ProcessStops:
         """End the process with ``status`` (raises SystemExit; see the class docstring)."""
         self._status = status
         sys.exit(status)
-
-    def _end(self) -> None:
-        if self._status is not None:  # not after an uncaught exception: Python ends it then
-            _flush_standard_streams()
-            os._exit(self._status)
 
 
 def _flush_standard_streams() -> None:

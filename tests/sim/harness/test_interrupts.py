@@ -196,8 +196,7 @@ def test_a_stop_during_the_imports_is_one_line_and_status_130(tmp_path, stop):
 def test_a_stop_while_exiting_is_one_line_after_the_complete_output(tmp_path, stop):
     """The stop comes after the command printed everything, while Python cleans up (here an
     atexit callback registered during the command that stalls); without the fix SIGTERM and
-    SIGHUP killed the process silently there (143, 129), and after the callbacks Python's
-    teardown restores the default handlers, so the process must end before it."""
+    SIGHUP killed the process silently there (143, 129)."""
     marker = tmp_path / "exiting"
     hook = (f"def stall():\n"
             f"    pathlib.Path({str(marker)!r}).touch()\n"
@@ -208,18 +207,35 @@ def test_a_stop_while_exiting_is_one_line_after_the_complete_output(tmp_path, st
             f"            sys.meta_path.remove(self)\n"
             f"            atexit.register(stall)\n"
             f"sys.meta_path.insert(0, StallAtExit())")
-    # Unstopped: the status and the output as they are, and no teardown (in which an object
-    # kept in sys.modules would be deleted), where a stop could not be answered.
-    torn_down = tmp_path / "torn_down"
-    complete = _egostab_process(["list"], f"class Probe:\n"
-                                          f"    def __del__(self):\n"
-                                          f"        pathlib.Path({str(torn_down)!r}).touch()\n"
-                                          f"sys.modules['teardown_probe'] = Probe()")
-    listing, nothing = complete.communicate(timeout=120)
-    assert (complete.returncode, nothing) == (0, b"") and listing.count(b"\n") >= 5
-    assert not torn_down.exists()
+    listing, _ = _egostab_process(["list"], "").communicate(timeout=120)
     process = _egostab_process(["list"], hook)
     out, err = _stopped_at(marker, process, stop)
     assert process.returncode == 130
     assert err == f"egostab list: {_reason(stop)}, while exiting (its files are complete)\n"
     assert out == listing.decode()
+
+
+def test_an_unstopped_process_ends_as_python_ends_it(tmp_path):
+    """Every exit callback runs, also one registered before egostab starts (a sitecustomize,
+    coverage's), and the modules are torn down: a file a plugin left open is written out."""
+    early, left_open = tmp_path / "early_callback", tmp_path / "left_open.txt"
+    hook = (f"atexit.register(pathlib.Path({str(early)!r}).touch)\n"
+            f"sys.modules['left_open'] = open({str(left_open)!r}, 'w')\n"
+            f"sys.modules['left_open'].write('buffered')")
+    process = _egostab_process(["list"], hook)
+    out, err = process.communicate(timeout=120)
+    assert (process.returncode, err) == (0, b"") and out.count(b"\n") >= 5
+    assert early.exists() and left_open.read_text() == "buffered"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs Linux's /dev/full")
+def test_output_that_cannot_be_written_is_an_error_not_a_success():
+    # Buffered output (a file, not a terminal) is written at the end, after the command.
+    environment = {key: value for key, value in os.environ.items()
+                   if key != "PYTHONUNBUFFERED"}
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "sim.harness.cli", "list"], stdout=full,
+                              stderr=subprocess.PIPE, text=True, env=environment, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr == ("egostab list: error: its output could not be written: No space "
+                           "left on device\n")
