@@ -12,12 +12,17 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sim.harness.interrupts import Interrupted
+from sim.harness.interrupts import STOP_SIGNALS, Interrupted
+from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
                                     plan_sweep, split_done)
@@ -82,6 +87,7 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
                          f"got {workers!r}")
     if backend == "ray":
         _import_ray()  # fail before anything is written if the extra is missing
+    started = time.time()
     done, pending = split_done(plan)
     outcomes = {outcome.run.name: outcome for outcome in done}
     execute = _run_local if backend == "local" else _run_ray
@@ -90,16 +96,18 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
                                       len(pending), progress, label):
             outcomes[outcome.run.name] = outcome
     finally:  # also on Ctrl-C: the tables show every finished run
-        result = write_outputs(_table_outcomes(plan, outcomes))
+        result = write_outputs(_table_outcomes(plan, outcomes, started))
     return result
 
 
-def _table_outcomes(plan: Sequence[SweepRun],
-                    outcomes: dict[str, RunOutcome]) -> tuple[RunOutcome, ...]:
+def _table_outcomes(plan: Sequence[SweepRun], outcomes: dict[str, RunOutcome],
+                    started: float) -> tuple[RunOutcome, ...]:
     """The outcome the tables show of each planned run, in plan order: its outcome in this
-    call, unless it has none (not run yet: interrupted first) or was interrupted, and its folder
-    holds a run finished before this call; that one is shown then, read back from its
-    metrics.json. A run over a finished one (a method added to the file) replaces it only once
+    call, unless it has none (not run yet: interrupted first; or its result never came back,
+    as from a Ray task that finished while the interrupt cancelled it) or was interrupted, and
+    its folder holds a finished run; that one is shown then, read back from its metrics.json,
+    as done before this call if its metrics.json is older than the call (``started``, a
+    time.time()). A run over a finished one (a method added to the file) replaces it only once
     finished too, so an interrupt leaves the finished one there, and the tables keep it too."""
     shown = []
     for sweep_run in plan:
@@ -107,7 +115,8 @@ def _table_outcomes(plan: Sequence[SweepRun],
         if outcome is None or not (outcome.error or outcome.status in DONE_STATUSES):
             earlier = completed_metrics(sweep_run.config.out_dir)
             if earlier is not None:
-                outcome = RunOutcome(sweep_run, earlier, skipped=True)
+                written = (Path(sweep_run.config.out_dir) / METRICS_JSON).stat().st_mtime
+                outcome = RunOutcome(sweep_run, earlier, skipped=written < started)
         if outcome is not None:
             shown.append(outcome)
     return tuple(shown)
@@ -186,6 +195,24 @@ def _import_ray():
     return ray
 
 
+@contextmanager
+def _signal_handlers_kept() -> Iterator[None]:
+    """The stop signals' handlers as they were before the block: ``ray.init`` installs its own
+    for SIGTERM (an exit without cancelling the runs: the status said neither "interrupted"
+    nor the signal), where a sweep's stop ends its runs with complete files."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handlers = {number: signal.getsignal(number)
+                for number in (signal.SIGINT, *STOP_SIGNALS)}
+    try:
+        yield
+    finally:
+        for number, handler in handlers.items():
+            if handler is not None:  # None: installed outside Python, left as it is
+                signal.signal(number, handler)
+
+
 def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
              ray_address: str | None) -> Iterator[RunOutcome]:
     """Runs as Ray tasks (one CPU each), at most ``workers`` at a time if given."""
@@ -194,8 +221,9 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
         return
     started_here = not ray.is_initialized()
     if started_here:
-        ray.init(address=ray_address, include_dashboard=False,
-                 runtime_env={"env_vars": single_thread_environment_vars()})
+        with _signal_handlers_kept():
+            ray.init(address=ray_address, include_dashboard=False,
+                     runtime_env={"env_vars": single_thread_environment_vars()})
     in_flight: dict[Any, SweepRun] = {}
     try:
         remote_run = ray.remote(num_cpus=1, max_retries=0)(run_fn)

@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import os
+import time
 from pathlib import Path
 
 import pytest
@@ -277,6 +278,21 @@ def test_an_interrupted_rescore_keeps_every_run_finished_before_in_the_tables(tm
     assert [row["method"] for row in rows[:2]] == list(METHODS)
     assert rows[0]["run"] == rows[1]["run"] == before[0]["run"] and rows[2:] == before[1:]
 
+    def finished_unreported(pending, run_fn, workers, ray_address):
+        # A run that finished while the interrupt cancelled it (a Ray task): no result came
+        # back, its files are there, written in this call.
+        time.sleep(0.05)  # past the coarse clock of file times
+        fake_run(pending[0].config)
+        raise KeyboardInterrupt
+        yield
+
+    monkeypatch.setattr(sweep_execute, "_run_local", finished_unreported)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(small_spec(), tmp_path, workers=2, run_fn=fake_run)
+    assert "8 planned, 8 finished (7 already complete before this call)" in (
+        tmp_path / "sweep.md").read_text()
+    assert [row["method"] for row in read_csv(tmp_path / "sweep.csv")[:4]] == [*METHODS] * 2
+
 
 def check_table(out_dir: Path, spec, expected_status: dict[str, str]) -> list[dict]:
     """sweep.csv/md and one PNG per scenario exist; rows match what fake_run wrote."""
@@ -349,6 +365,20 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     rows = check_table(tmp_path, spec, expected)
     assert len(rows) == 4 * len(METHODS) + 4  # failed runs: one row each, no methods
     assert "4 failed" in result.markdown
+
+
+def test_ray_init_does_not_take_over_the_stop_signals():
+    # ray.init installs a SIGTERM handler that exits without the runs' "interrupted" files.
+    import signal
+
+    from sim.harness.interrupts import stop_signals_interrupt
+    from sim.harness.sweep.execute import _signal_handlers_kept
+
+    with stop_signals_interrupt():
+        ours = signal.getsignal(signal.SIGTERM)
+        with _signal_handlers_kept():
+            signal.signal(signal.SIGTERM, lambda signum, frame: None)  # as ray.init does
+        assert signal.getsignal(signal.SIGTERM) is ours
 
 
 def test_ray_backend_on_a_local_instance(tmp_path):
