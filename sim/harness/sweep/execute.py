@@ -186,6 +186,15 @@ def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) 
     return run_fn(config)
 
 
+def _run_as_ray_task(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
+    """``run_fn(config)`` in a Ray worker, which a cancel can interrupt: Ray cancels a running
+    task by a Ctrl-C of its worker, which a worker started with Ctrl-C ignored (a sweep started
+    in the background: ``&``, ``nohup``, a batch job) never felt, so its run went on to the end."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    return run_fn(config)
+
+
 def _import_ray():
     try:
         import ray
@@ -226,12 +235,12 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
                      runtime_env={"env_vars": single_thread_environment_vars()})
     in_flight: dict[Any, SweepRun] = {}
     try:
-        remote_run = ray.remote(num_cpus=1, max_retries=0)(run_fn)
+        remote_run = ray.remote(num_cpus=1, max_retries=0)(_run_as_ray_task)
         queue = list(pending)
         while queue or in_flight:
             while queue and (workers is None or len(in_flight) < workers):
                 sweep_run = queue.pop(0)
-                in_flight[remote_run.remote(sweep_run.config)] = sweep_run
+                in_flight[remote_run.remote(run_fn, sweep_run.config)] = sweep_run
             [ready], _ = ray.wait(list(in_flight), num_returns=1)
             sweep_run = in_flight.pop(ready)
             try:

@@ -381,6 +381,21 @@ def test_ray_init_does_not_take_over_the_stop_signals():
         assert signal.getsignal(signal.SIGTERM) is ours
 
 
+def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
+    # Started in the background (`&`, nohup, a batch job), the sweep ignores Ctrl-C and so do
+    # Ray's workers; a cancel, a Ctrl-C of the worker, then never stopped the run.
+    import signal
+
+    from sim.harness.sweep.execute import _run_as_ray_task
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        handler = _run_as_ray_task(lambda config: signal.getsignal(signal.SIGINT), None)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert handler is signal.default_int_handler
+
+
 def test_ray_backend_on_a_local_instance(tmp_path):
     ray = pytest.importorskip("ray")
     spec = small_spec(seeds=[0, 1], noise_levels=[1.0])
