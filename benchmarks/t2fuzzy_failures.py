@@ -616,7 +616,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     if args.command == "record":
-        record(args.out, args.seeds)
+        try:
+            record(args.out, args.seeds)
+        except ValueError as error:  # a held-out seed
+            print(f"t2fuzzy_failures.py record: error: {error}", file=sys.stderr)
+            return 2
     elif args.command == "table":
         table(_sequences(args.folders))
     elif args.command == "summary":

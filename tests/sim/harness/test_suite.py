@@ -11,6 +11,8 @@ import csv
 import json
 import math
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -178,7 +180,8 @@ SEED_IN_CODE = re.compile(r"scene_seed\s*[=:]\s*(\d+)|build_scene\(\s*[\"'\w]+\s
 
 def test_no_code_or_test_in_the_repo_builds_a_heldout_scene():
     heldout = heldout_scene_seeds()
-    files = [p for folder in ("sim", "stabilizer", "tests", "examples", "scenarios")
+    files = [p for folder in ("sim", "stabilizer", "tests", "examples", "scenarios",
+                              "benchmarks")
              for p in (REPO / folder).rglob("*") if p.suffix in (".py", ".toml")]
     assert files
     for path in files:
@@ -187,6 +190,16 @@ def test_no_code_or_test_in_the_repo_builds_a_heldout_scene():
         for match in SEED_IN_CODE.finditer(path.read_text(encoding="utf-8")):
             seed = int(match.group(1) or match.group(2))
             assert seed not in heldout, f"{path}: {match.group(0)}"
+
+
+def test_the_tuning_script_refuses_to_record_a_heldout_scene(tmp_path):
+    done = subprocess.run([sys.executable, str(REPO / "benchmarks" / "t2fuzzy_failures.py"),
+                           "record", "--seeds", "2001", str(min(heldout_scene_seeds())),
+                           "--out", str(tmp_path / "walks")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "is a seed of the held-out suite" in done.stderr
+    assert not (tmp_path / "walks").exists()  # refused before the first recording
 
 
 # --- Counting and outputs (fake runs) --------------------------------------------------------
