@@ -71,13 +71,34 @@ def stop_signals_interrupt() -> Iterator[None]:
         yield
         return
     _received.clear()
-    previous = {number: signal.signal(number, _raise_interrupted) for number in STOP_SIGNALS
-                if signal.getsignal(number) is not signal.SIG_IGN}
+    with signal_handlers_kept():
+        handle(STOP_SIGNALS, _raise_interrupted)
+        yield
+
+
+def handle(numbers: Iterable[int], handler) -> None:
+    """Install ``handler`` for the signals ``numbers``, but for one the process was started
+    ignoring (``nohup``'s SIGHUP, Ctrl-C of a background job), which stays ignored."""
+    for number in numbers:
+        if signal.getsignal(number) is not signal.SIG_IGN:
+            signal.signal(number, handler)
+
+
+@contextmanager
+def signal_handlers_kept() -> Iterator[None]:
+    """Ctrl-C's and the stop signals' handlers after the block as they were before it, whatever
+    the block installs (as ``ray.init`` does). Only the main thread has handlers: elsewhere the
+    block runs unchanged."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handlers = {number: signal.getsignal(number) for number in (signal.SIGINT, *STOP_SIGNALS)}
     try:
         yield
     finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+        for number, kept in handlers.items():
+            if kept is not None:  # None: installed outside Python, left as it is
+                signal.signal(number, kept)
 
 
 #: Exit status of a process a stop ended: 128 + SIGINT, as shells report Ctrl-C.
@@ -106,11 +127,8 @@ class ProcessStops:
         self._status: int | None = None  # set by exit(): the job is done
 
     def install(self, numbers: Iterable[int]) -> None:
-        """Handle the signals ``numbers`` from now on; one the process was started ignoring
-        (``nohup``, a background job of a script) stays ignored."""
-        for number in numbers:
-            if signal.getsignal(number) is not signal.SIG_IGN:
-                signal.signal(number, self.stop)
+        """Handle the signals ``numbers`` from now on (:func:`handle`)."""
+        handle(numbers, self.stop)
 
     def stop(self, signum: int, frame=None) -> NoReturn:
         """End the process now, saying which signal stopped it (and, once the job is done,

@@ -76,7 +76,7 @@ from sim.world.scenes import SCENES, Floor, SceneParameterError, scene_layout
 from sim.world.scenes.floor import FLOOR_BOUNDS
 from sim.world.sensor.tof_model import MAX_FPS, TOF_PRESETS, ToFParams
 from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
-from sim.harness.validation import (MAX_SEED, FileValueError, is_finite_number, is_int,
+from sim.harness.validation import (FileValueError, is_finite_number, is_int, is_seed,
                                    read_toml)
 from stabilizer.api import available_methods
 
@@ -223,11 +223,11 @@ class Scenario:
                      "(default: the file's stem)", _is_one_line)
     description: str = _key("", "free text")
     scene: str = _key("corridor", f"one of {', '.join(SCENES)}", lambda v: v in SCENES)
-    scene_seed: int = _key(0, "an integer from 0 to 2**63 - 1", lambda v: 0 <= v <= MAX_SEED)
+    scene_seed: int = _key(0, "an integer from 0 to 2**63 - 1", is_seed)
     scene_params: dict = _key(dict, "a table [scene_params] of the scene's parameters "
                               "(docs/scenes.md); resolved, it lists every parameter")
     floor: FloorSpec = _key(FloorSpec, "a table [floor]")
-    seed: int = _key(0, "an integer from 0 to 2**63 - 1", lambda v: 0 <= v <= MAX_SEED)
+    seed: int = _key(0, "an integer from 0 to 2**63 - 1", is_seed)
     duration_s: float = _key(20.0, f"0 < duration_s <= {MAX_DURATION_S:g}",
                              lambda v: 0 < v <= MAX_DURATION_S)
     commands: tuple = _key(lambda: (Command(),), "an array of tables [[commands]] with t, "

@@ -36,12 +36,17 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
 
 
 def _estimates(text: str) -> tuple[str, str]:
-    # Spaces around NAME and PATH are dropped, as `egostab score --estimates` drops them.
-    name, _, path = (part.strip() for part in text.partition("="))
-    if not name or not path:
-        raise argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=PATH, NAME not blank, "
+    from sim.harness.score import parse_estimates_argument
+
+    refused = argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=PATH, NAME not blank, "
                                          f"{{sequence}} in PATH standing for each sequence's "
                                          f"folder name")
+    if "=" not in text:  # a file's stem names nothing here: every sequence has its own file
+        raise refused
+    try:
+        name, path = parse_estimates_argument(text)
+    except ValueError:
+        raise refused from None
     return name, str(Path(path).absolute())  # the workers may run in another folder
 
 

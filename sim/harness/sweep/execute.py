@@ -17,11 +17,10 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sim.harness.interrupts import STOP_SIGNALS, Interrupted
+from sim.harness.interrupts import Interrupted, signal_handlers_kept
 from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
@@ -204,24 +203,6 @@ def _import_ray():
     return ray
 
 
-@contextmanager
-def _signal_handlers_kept() -> Iterator[None]:
-    """The stop signals' handlers as they were before the block: ``ray.init`` installs its own
-    for SIGTERM (an exit without cancelling the runs: the status said neither "interrupted"
-    nor the signal), where a sweep's stop ends its runs with complete files."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    handlers = {number: signal.getsignal(number)
-                for number in (signal.SIGINT, *STOP_SIGNALS)}
-    try:
-        yield
-    finally:
-        for number, handler in handlers.items():
-            if handler is not None:  # None: installed outside Python, left as it is
-                signal.signal(number, handler)
-
-
 def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
              ray_address: str | None) -> Iterator[RunOutcome]:
     """Runs as Ray tasks (one CPU each), at most ``workers`` at a time if given."""
@@ -230,7 +211,7 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
         return
     started_here = not ray.is_initialized()
     if started_here:
-        with _signal_handlers_kept():
+        with signal_handlers_kept():
             ray.init(address=ray_address, include_dashboard=False,
                      runtime_env={"env_vars": single_thread_environment_vars()})
     in_flight: dict[Any, SweepRun] = {}

@@ -14,7 +14,8 @@ import tomllib
 import pytest
 
 from scenarios import SCENARIOS_DIR, SUITES_DIR
-from sim.harness.interrupts import Interrupted, interrupt_reason, stop_signals_interrupt
+from sim.harness.interrupts import (Interrupted, interrupt_reason, signal_handlers_kept,
+                                    stop_signals_interrupt)
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 
@@ -42,6 +43,15 @@ def test_an_ignored_stop_signal_stays_ignored_inside_the_block():
         assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGHUP, previous)
+
+
+def test_a_handler_installed_within_the_kept_block_is_undone():
+    # As ray.init installs a SIGTERM handler that exits without the runs' "interrupted" files.
+    with stop_signals_interrupt():
+        ours = signal.getsignal(signal.SIGTERM)
+        with signal_handlers_kept():
+            signal.signal(signal.SIGTERM, lambda signum, frame: None)  # as ray.init does
+        assert signal.getsignal(signal.SIGTERM) is ours
 
 
 def test_a_signal_raised_again_by_a_library_is_still_named():

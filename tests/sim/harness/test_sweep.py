@@ -367,20 +367,6 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     assert "4 failed" in result.markdown
 
 
-def test_ray_init_does_not_take_over_the_stop_signals():
-    # ray.init installs a SIGTERM handler that exits without the runs' "interrupted" files.
-    import signal
-
-    from sim.harness.interrupts import stop_signals_interrupt
-    from sim.harness.sweep.execute import _signal_handlers_kept
-
-    with stop_signals_interrupt():
-        ours = signal.getsignal(signal.SIGTERM)
-        with _signal_handlers_kept():
-            signal.signal(signal.SIGTERM, lambda signum, frame: None)  # as ray.init does
-        assert signal.getsignal(signal.SIGTERM) is ours
-
-
 def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
     # Started in the background (`&`, nohup, a batch job), the sweep ignores Ctrl-C and so do
     # Ray's workers; a cancel, a Ctrl-C of the worker, then never stopped the run.
