@@ -354,7 +354,10 @@ def _coerce(value, kind, source, key, allowed):
         tuple: isinstance(value, list) and all(isinstance(v, str) for v in value),
     }[kind]
     if not ok:
-        expected = {tuple: "a list of strings"}.get(kind, f"a {kind.__name__}")
+        # TOML's inf and nan are floats, but no figure of a scenario is infinite or undefined
+        # (and metrics.json, strict JSON, could not store them).
+        expected = {tuple: "a list of strings", float: "a finite number"}.get(
+            kind, f"a {kind.__name__}")
         raise ScenarioError(source, key, f"wrong type: {value!r} is not {expected}", allowed)
     return tuple(value) if kind is tuple else kind(value)
 
@@ -478,7 +481,8 @@ def _replace_checked(cls, base, overrides: Mapping, key: str, source: str):
         if name not in names:
             raise ScenarioError(source, f"{key}.{name}", "unknown field",
                                 f"fields of {cls.__name__}: {', '.join(names)}")
-        _coerce(value, hints[name], source, f"{key}.{name}", f"a {hints[name].__name__}")
+        _coerce(value, hints[name], source, f"{key}.{name}",
+                "a finite number" if hints[name] is float else f"a {hints[name].__name__}")
     try:
         return dataclasses.replace(base, **overrides)
     except ValueError as error:  # the class's own check: it may say what is allowed

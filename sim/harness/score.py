@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import math
 import os
 from contextlib import contextmanager
@@ -163,8 +164,8 @@ class FileEstimation:
 
     def __init__(self, path: str | os.PathLike, sequence):
         self.path, self.sequence = Path(path), sequence
-        self.motions = read_estimates(self.path, sequence.n_frames)
-        self.sha256 = file_sha256(self.path)
+        # One read: the digest is of the very bytes scored, even if the file changes meanwhile.
+        self.motions, self.sha256 = read_estimates(self.path, sequence.n_frames)
         self.analysis_ms: list[float] = []
 
     def estimate(self, reference, frame):
@@ -184,14 +185,17 @@ def file_sha256(path: str | os.PathLike) -> str:
         return hashlib.file_digest(file, "sha256").hexdigest()
 
 
-def read_estimates(path: Path, n_frames: int) -> dict:
-    """Frame -> Motion of an estimates file; a bad row is refused with its line number."""
+def read_estimates(path: Path, n_frames: int) -> tuple[dict, str]:
+    """Frame -> Motion of an estimates file, and the SHA-256 (hex) of the bytes read; a bad row
+    is refused with its line number."""
     from sim.harness.validation import FileValueError
 
     import csv
 
+    data = Path(path).read_bytes()
     try:
-        return _read_estimates(path, n_frames)
+        return _read_estimates(path, data.decode("utf-8-sig"), n_frames), \
+            hashlib.sha256(data).hexdigest()
     except UnicodeDecodeError as error:
         raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at byte "
                              f"{error.start})", "a UTF-8 CSV file (a byte-order mark is "
@@ -201,15 +205,16 @@ def read_estimates(path: Path, n_frames: int) -> dict:
                              "rows of frame, angle_deg, dx, dy and optionally status") from None
 
 
-def _read_estimates(path: Path, n_frames: int) -> dict:
+def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     import csv
 
     from sim.harness.validation import FileValueError
     from stabilizer.motion import OK, Motion
 
     motions: dict[int, Motion] = {}
-    # utf-8-sig: spreadsheets and some shells (PowerShell, .NET) start UTF-8 with a byte-order mark.
-    with open(path, newline="", encoding="utf-8-sig") as handle:
+    # Decoded as utf-8-sig: spreadsheets and some shells (PowerShell, .NET) start UTF-8 with a
+    # byte-order mark. newline="": the csv module reads the line endings itself.
+    with io.StringIO(text, newline="") as handle:
         reader = csv.DictReader(handle)
         header = [name.strip() for name in (reader.fieldnames or ())]
         missing = [name for name in ESTIMATE_COLUMNS if name not in header]

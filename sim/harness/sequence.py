@@ -39,6 +39,8 @@ EXACT_DEPTH_UNIT_M = 5e-4
 DEPTH_UNITS_M = (FINE_DEPTH_UNIT_M, EXACT_DEPTH_UNIT_M)
 #: Largest value of a 16-bit PNG.
 UINT16_MAX = 65535
+#: The last 12 bytes of every complete PNG: its IEND chunk (length 0, type, CRC).
+PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 #: Files and folders of a sequence.
 SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT = "sequence.json", "truth.csv", "groundtruth.txt"
 DEPTH_DIR, EXACT_DIR = "depth", "exact"
@@ -276,7 +278,14 @@ class LoadedSequence:
         import cv2
 
         path = self.path / folder / frame_file(index)
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        try:
+            data = path.read_bytes()
+        except OSError:
+            data = b""
+        # A cut-off file (an interrupted copy, a full disk) lacks the closing IEND chunk: it is
+        # refused here, before libpng would print a line of its own beside the refusal.
+        image = (cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+                 if data.endswith(PNG_END) else None)
         expected = (self.intrinsics.height, self.intrinsics.width)
         if image is None:
             raise FileValueError(str(path), "image", "missing or not a readable PNG",

@@ -279,3 +279,25 @@ def test_a_recording_that_ended_with_a_fall_scores_as_the_run_that_fell(tmp_path
     assert ran["run"]["fall"] == scored["run"]["fall"]
     assert ran["run"]["frames_done"] == scored["run"]["frames_done"] == header["frames"] < 90
     _same_rows(_rows(tmp_path / "run"), _rows(tmp_path / "score"))
+
+
+def test_the_recorded_digest_is_of_the_estimates_scored_even_if_the_file_changes(
+        folders, tmp_path, monkeypatch):
+    import hashlib
+
+    import sim.harness.score
+
+    path = _estimates_from_truth(folders / "sequence", tmp_path / "mine.csv")
+    scored_bytes = path.read_bytes()
+    parse = sim.harness.score._read_estimates
+
+    def parse_then_change_the_file(*args):
+        motions = parse(*args)
+        path.write_text("frame,angle_deg,dx,dy\n0,1,2,3\n")  # another program rewrites it
+        return motions
+
+    monkeypatch.setattr(sim.harness.score, "_read_estimates", parse_then_change_the_file)
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "o"),
+                                estimates={"mine": str(path)}, record=False))
+    assert metrics["run"]["estimates_sha256"]["mine"] == hashlib.sha256(scored_bytes).hexdigest()
+    assert sum(row["status"] == "ok" for row in _rows(tmp_path / "o")) == N_FRAMES - 1

@@ -159,6 +159,22 @@ def test_a_damaged_frame_image_is_refused_when_read(sequence_dir, tmp_path):
         sequence.frame(2)
 
 
+def test_a_cut_off_frame_image_is_refused_in_one_line(sequence_dir, tmp_path, capfd):
+    from sim.harness.cli import main
+
+    def cut_off(folder):
+        image = folder / "depth" / "000003.png"
+        data = image.read_bytes()
+        image.write_bytes(data[:len(data) // 2])  # an interrupted copy
+
+    broken = _broken_copy(sequence_dir, tmp_path, cut_off)
+    assert main(["score", str(broken), "--methods", "ecc", "--out", str(tmp_path / "out"),
+                 "--no-record", "--quiet"]) == 2
+    # Read at the file descriptor: libpng writes its own complaints there, not to sys.stderr.
+    err = capfd.readouterr().err.strip()
+    assert "000003.png" in err and "16-bit grey PNG" in err and "\n" not in err, err
+
+
 def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path,
                                                                   interrupt_ground_truth):
     interrupt_ground_truth(4)
