@@ -186,3 +186,17 @@ def test_the_readme_shows_the_rendered_picture():
 def test_render_robot_rejects_bad_sizes(bad):
     with pytest.raises(ValueError):
         render_robot.render_humanoid(**bad)
+
+
+def test_the_readme_names_each_joints_servo_class_as_the_model_does():
+    import re
+    import xml.etree.ElementTree as ElementTree
+
+    readme = (HUMANOID_DIR / "README.md").read_text()
+    table = dict(re.findall(r"^\| `(\w+)` \| [xyz] \| .+ \| `(\w+)` \|$", readme, re.MULTILINE))
+    assert len(table) == 14  # legs 6, waist 2, neck 2, arms 4 per side or centre
+    root = ElementTree.parse(humanoid_path("humanoid.xml")).getroot()
+    for kind in ("joint", "position"):  # the joint and its servo
+        classes = {re.sub(r"^[lr]_", "", element.get("name")): element.get("class")
+                   for element in root.iter(kind) if element.get("name")}
+        assert classes == table, kind
