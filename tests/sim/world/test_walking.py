@@ -285,12 +285,20 @@ def test_following_the_measured_floor_walks_where_the_level_plan_fell(
     # of docs/walking.md (across the slope at 13.8 s, uphill at 11.4 s). Whether and when the
     # level plan falls that late is chaotic and differs between machines (on another one the
     # first walked 13 s without a fall), so the comparison is the benchmark's, not this test's.
-    sim = floor_walk(gait, slope_direction_deg, seed, 20.0)
+    sim = floor_walk(gait, slope_direction_deg, seed, 10.0)
+    estimates = []
+    for _ in range(20):  # the walk's last 10 s
+        sim.run(0.5)
+        estimates.append(sim.controller.floor.estimate)
     assert sim.fall is None, sim.fall
-    slope = sim.controller.floor.estimate
-    assert math.degrees(math.atan(math.hypot(*slope))) == pytest.approx(3.0, abs=0.5)
-    rises_towards = math.degrees(math.atan2(slope[1], slope[0]))
-    assert abs(math.remainder(rises_towards - slope_direction_deg, 360.0)) < 5.0
+    # The plane the controller follows, over those 10 s: a bump under the footholds tilts it
+    # for a step or two (5 mm under the 13 cm sole is up to 2 degrees), and which bump comes
+    # at a given instant differs between machines (on one, 3.9 degrees at 21 s, 3.4 before).
+    slopes = [math.degrees(math.atan(math.hypot(*slope))) for slope in estimates]
+    assert float(np.median(slopes)) == pytest.approx(3.0, abs=0.5)
+    rises_towards = [math.degrees(math.atan2(slope[1], slope[0])) for slope in estimates]
+    off = [abs(math.remainder(angle - slope_direction_deg, 360.0)) for angle in rises_towards]
+    assert float(np.median(off)) < 5.0
 
 
 @pytest.mark.parametrize("gait", ["default", "paper_like"])
