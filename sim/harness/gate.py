@@ -277,7 +277,8 @@ def run_gate(baseline_path: Path, update: bool = False,
     if update:
         write_baseline(Path(baseline_path), results)
         print(f"baseline written to {baseline_path} "
-              f"({sum(len(m) for m in results.values())} scenario x method entries)")
+              f"({sum(len(m) for m in results.values())} entries: each scenario's methods and "
+              "its ground truth)")
         return 0
     rows = compare(results, baseline)
     moved = [row for row in rows if row["verdict"] != WITHIN]

@@ -506,14 +506,16 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A scenario file from a path, or from the name of a shipped one."""
     path = Path(name_or_path)
     accepted = "a scenario TOML file, or the name of a shipped one (egostab list)"
-    if path.suffix == ".toml" or path.exists():
+    shipped = SCENARIOS_DIR / f"{name_or_path}.toml"
+    # A folder does not hide a shipped scenario of its name: `egostab run corridor_straight
+    # --out corridor_straight` makes that folder before the run reads its scenario.
+    if path.suffix == ".toml" or path.is_file() or (path.exists() and not shipped.is_file()):
         if path.is_dir():
             raise FileNotFoundError(f"{path} is a folder, not a scenario file; accepted: "
                                     f"{accepted}")
         if not path.is_file():
             raise FileNotFoundError(f"no scenario file {path}; accepted: {accepted}")
         return path
-    shipped = SCENARIOS_DIR / f"{name_or_path}.toml"
     if not shipped.is_file():
         names = ", ".join(p.stem for p in list_scenarios())
         raise FileNotFoundError(f"no scenario {name_or_path!r}; accepted: a scenario TOML "

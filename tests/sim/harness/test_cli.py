@@ -146,6 +146,14 @@ def test_a_missing_sweep_file_is_one_line_and_status_2(tmp_path, capsys):
     assert "none.toml" in _one_line_error(capsys, "sweep")
 
 
+def test_a_shipped_scenario_runs_into_a_folder_of_its_own_name(tmp_path, monkeypatch):
+    # The output folder is made before the run reads its scenario: it must not stand for it.
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "corridor_straight", "--out", "corridor_straight", "--no-record",
+                 "--max-frames", "2", "--methods", "ecc", "--quiet"]) == 0
+    assert (tmp_path / "corridor_straight" / "metrics.json").is_file()
+
+
 @pytest.mark.parametrize("command", [["run", "--no-record", "--max-frames", "2"],
                                      ["ideal", "corridor", "--frames", "2"]])
 def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(

@@ -218,6 +218,15 @@ def test_names_resolve_to_shipped_files_and_unknown_names_list_them():
         load_scenario("lab_clutter", overrides={"sensor.fps": 100.0})
 
 
+def test_a_folder_does_not_hide_a_shipped_scenario_of_its_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ("corridor_straight", "not_shipped"):
+        (tmp_path / name).mkdir()  # e.g. the output folder of `--out corridor_straight`
+    assert resolve_scenario_path("corridor_straight") == SCENARIOS_DIR / "corridor_straight.toml"
+    with pytest.raises(FileNotFoundError, match="not_shipped is a folder"):
+        resolve_scenario_path("not_shipped")
+
+
 def test_scenario_errors_survive_pickling(tmp_path):
     """Runs go through process pools: their errors must pickle."""
     with pytest.raises(ScenarioError) as error:
