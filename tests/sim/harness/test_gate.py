@@ -102,7 +102,8 @@ def test_run_gate_exit_codes_and_baseline_update(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: _with(failed_frames=9))
     assert gate.run_gate(path) == 1
     out = capsys.readouterr().out
-    assert "gate failed: 1 figure(s)" in out and "| failed_frames | 3.0000 | 9.0000 | +6.0000 |" in out
+    assert "gate failed: 1 figure(s)" in out
+    assert "| failed_frames | 3.0000 | 9.0000 | +6.0000 |" in out
     monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: _with(failed_frames=0))
     assert gate.run_gate(path) == 1
     assert "(0 worse, 1 better" in capsys.readouterr().out
