@@ -83,9 +83,12 @@ def _cmd_record(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.runner import RecordConfig, record, scenario_name
     from sim.harness.scenario import load_scenario
+    from sim.harness.sequence import check_recording_folder
 
     load_scenario(args.scenario)  # a bad scenario is reported before any folder is made
-    out_dir = prepare_output_dir(args.out or DEFAULT_SEQUENCES / scenario_name(args.scenario))
+    out = args.out or DEFAULT_SEQUENCES / scenario_name(args.scenario)
+    check_recording_folder(out)  # the user's own files there are not overwritten
+    out_dir = prepare_output_dir(out)
     header = record(RecordConfig(scenario=args.scenario, out_dir=str(out_dir),
                                  max_frames=args.max_frames, seed=args.seed,
                                  progress=not args.quiet))
@@ -109,7 +112,7 @@ def _sequence_name(sequence: Path) -> str:
     that scoring several of a suite's sequences does not write them all to one folder."""
     from sim.harness.suite.run import SEQUENCE_FOLDER
 
-    folder = Path(sequence).absolute()
+    folder = Path(sequence).resolve()  # `depth/..` or `.` name the folder they stand for
     return folder.parent.name if folder.name == SEQUENCE_FOLDER else folder.name
 
 
@@ -125,6 +128,10 @@ def _cmd_score(args: argparse.Namespace) -> int:
     for path in estimates.values():
         read_estimates(Path(path), sequence.n_frames)
     out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
+    if args.out is None and out.resolve().is_relative_to(Path(args.sequence).resolve()):
+        raise ValueError(f"the default run folder {out} (results/<sequence name> in the working "
+                         "directory) is in the sequence folder; accepted: --out a folder of its "
+                         "own, or scoring from outside the sequence folder")
     # Built before the folder is made: ScoreConfig refuses a run folder in the sequence folder.
     config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
                          estimates=estimates, record=not args.no_record, workers=args.workers,

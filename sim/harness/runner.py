@@ -632,9 +632,10 @@ def record(config: RecordConfig) -> dict:
     re-raised.
     """
     from sim.harness.provenance import provenance
-    from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, RecordedFall,
-                                      SequenceWriter, TruthRow)
+    from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, RecordedFall, SequenceWriter,
+                                      TruthRow, check_recording_folder)
 
+    check_recording_folder(config.out_dir)  # before simulating anything
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     references = ReferencePolicy(scenario.evaluation.reference)

@@ -173,16 +173,42 @@ class TruthRow:
         return " ".join(repr(float(v)) for v in (self.time_s, *self.cam_pos, *quaternion))
 
 
+def check_recording_folder(out_dir: str | Path) -> None:
+    """Refuse a folder that holds what a recording replaces (``depth/``, ``exact/``,
+    sequence.json, truth.csv, groundtruth.txt) but no sequence of this format: recording there
+    would delete or overwrite files of the user's own (another dataset's ``depth/000000.png``).
+    A new or empty folder, a folder of other files (they stay) and a sequence folder (it is
+    replaced) are accepted."""
+    folder = Path(out_dir)
+    present = [name for name in (DEPTH_DIR, EXACT_DIR, SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT)
+               if (folder / name).exists()]
+    if not present:
+        return
+    try:
+        header = json.loads((folder / SEQUENCE_JSON).read_text(encoding="utf-8"))
+        if isinstance(header, dict) and str(header.get("format", "")).startswith(
+                f"{FORMAT_NAME}/"):
+            return
+    except (OSError, UnicodeDecodeError, ValueError):
+        pass
+    raise FileValueError(str(folder), "folder", f"holds {', '.join(present)} but no sequence "
+                         f"of format {FORMAT_NAME} (a recording would replace them)",
+                         "a new or empty folder, one of other files, or a sequence folder to "
+                         "replace")
+
+
 class SequenceWriter:
     """Writes a sequence folder frame by frame; ``close`` writes the tables and sequence.json.
 
     sequence.json says "incomplete" from the start until ``close``, so a folder whose writer
     was killed is refused by ``load_sequence``. A sequence already in the folder is replaced:
     its frame images go first, so that a shorter recording leaves none of them behind (other
-    files stay).
+    files stay); a folder holding such files but no sequence is refused
+    (:func:`check_recording_folder`).
     """
 
     def __init__(self, out_dir: str | Path, header: Mapping[str, Any]):
+        check_recording_folder(out_dir)
         self.out_dir = Path(out_dir)
         self.header = dict(header)
         self.rows: list[TruthRow] = []

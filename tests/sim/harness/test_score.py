@@ -206,6 +206,24 @@ def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     assert sorted(path.name for path in sequence.iterdir()) == before
 
 
+def test_a_sequence_named_through_dot_dot_scores_into_results_of_its_name(folders, tmp_path,
+                                                                         monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    sequence = folders / "sequence"
+    assert main(["score", str(sequence / "depth" / ".."), "--methods", "ecc", "--quiet"]) == 0
+    # A folder called "sequence" is named by its parent, as a suite's runs/<name>/sequence.
+    assert (tmp_path / "results" / folders.name / "metrics.json").is_file()
+    assert not (tmp_path / "metrics.json").exists()  # not results/.. = the working directory
+    # From inside the sequence folder the default run folder would be inside it: refused, and
+    # the message says it is the default, not an --out the user gave.
+    monkeypatch.chdir(sequence / "depth")
+    capsys.readouterr()
+    assert main(["score", "..", "--methods", "ecc", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the default run folder" in err and "\n" not in err
+    assert not (sequence / "depth" / "results").exists()
+
+
 def test_the_python_api_refuses_a_run_folder_in_the_sequence_folder(folders):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())

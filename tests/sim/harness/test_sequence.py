@@ -199,6 +199,24 @@ def test_a_shorter_recording_replaces_a_sequence_without_leaving_its_frames(sequ
     assert (folder / "notes.txt").read_text() == "the user's own file"
 
 
+@pytest.mark.parametrize("own", ["depth/000000.png", "truth.csv", "sequence.json"])
+def test_a_folder_of_other_files_named_as_a_sequences_is_refused_and_kept(tmp_path, capsys,
+                                                                            own):
+    from sim.harness.cli import main
+
+    folder = tmp_path / "mydata"  # another dataset's layout, or notes of the user's own
+    (folder / own).parent.mkdir(parents=True, exist_ok=True)
+    (folder / own).write_text('{"mine": true}')
+    before = {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
+    assert main(["record", CI_CORRIDOR, "--max-frames", "2", "--out", str(folder),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no sequence of format egostab-sequence" in err and "\n" not in err
+    with pytest.raises(FileValueError, match="a new or empty folder"):  # and from Python
+        record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(folder), max_frames=2))
+    assert {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()} == before
+
+
 def test_a_sensor_without_range_limit_is_stored_in_the_coarser_unit(tmp_path):
     from sim.harness.sequence import EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M
 
