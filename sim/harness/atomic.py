@@ -48,6 +48,16 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
 
 
 
+def check_output_path(path: str | os.PathLike, option: str = "--out") -> Path:
+    """``path`` as a Path, or ValueError (one line) when it exists and is not a folder; makes
+    nothing, so that a command with two output folders can check both before making either."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{option} {folder}: exists and is not a folder; accepted: a folder "
+                         "(created if missing)")
+    return folder
+
+
 def prepare_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     """Create the output folder ``path`` and prove it writable, before any work starts.
 
@@ -55,10 +65,7 @@ def prepare_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     before it; this check moves that failure to the start. Raises ValueError with one line
     naming the folder, the problem and what is accepted.
     """
-    folder = Path(path)
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"{option} {folder}: exists and is not a folder; accepted: a folder "
-                         "(created if missing)")
+    folder = check_output_path(path, option)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         handle, probe = tempfile.mkstemp(dir=folder, prefix=".write-test.", suffix=".tmp")

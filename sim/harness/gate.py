@@ -198,6 +198,9 @@ def read_baseline(path: Path) -> dict:
     wrong.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"--baseline {path}: is a folder; accepted: the baseline's JSON file "
+                         "(results/baseline.json from the repository's root)")
     if not path.is_file():
         raise ValueError(f"no baseline at {path}; accepted: the committed one (run from the "
                          "repository's root, or give --baseline PATH), or a new one made on "

@@ -220,3 +220,19 @@ def test_a_constant_offset_of_one_method_fails_the_gate(tmp_path, monkeypatch):
     assert "x_bias_px" in moved and moved["x_bias_px"]["current"] - moved["x_bias_px"][
         "baseline"] == pytest.approx(0.3, abs=0.05)
     assert not any(row["method"] == gate.TRUTH for row in moved.values())
+
+
+def test_a_refused_gate_leaves_no_new_folder_and_names_a_folder_given_as_baseline(
+        tmp_path, monkeypatch, capsys):
+    from sim.harness.cli import main
+
+    monkeypatch.setattr(gate, "run_ci_scenarios", _must_not_run)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("")
+    assert main(["gate", "--update-baseline", "--baseline", "new/b.json", "--out", "a_file"]) == 2
+    assert "--out a_file: exists and is not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "a_folder").mkdir()
+    for folder in ("a_folder", ""):
+        assert main(["gate", "--baseline", folder]) == 2
+        assert "is a folder" in capsys.readouterr().err
