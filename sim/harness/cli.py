@@ -22,7 +22,7 @@ from typing import NoReturn
 from scenarios import DEFAULT_SCENARIO
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
-from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option, path_option
 
 #: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
 #: command that SIGPIPE ended.
@@ -58,7 +58,9 @@ def _methods(text: str) -> tuple[str, ...]:
 def _method_list(text: str) -> tuple[str, ...]:
     from stabilizer import available_methods
 
-    return available_methods() if text == "all" else _methods(text)
+    # As _methods reads a list: " all" and "all," are "all" too.
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    return available_methods() if names == ["all"] else _methods(text)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -156,11 +158,8 @@ def _cmd_ideal(args: argparse.Namespace) -> int:
 
 
 def _cmd_aggregate(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
     from sim.harness.report import aggregate_runs
 
-    if args.out is not None:
-        prepare_output_dir(args.out.parent or Path("."), option="--out's folder")
     table = aggregate_runs(args.runs, out_path=args.out, compact=args.compact)
     print(table)
     return 0
@@ -227,7 +226,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) -> None:
     """The options of the commands that simulate a scenario (run, record)."""
-    parser.add_argument("--out", type=Path, default=None, help=out_help)
+    parser.add_argument("--out", type=path_option, default=None, help=out_help)
     parser.add_argument("--max-frames", type=POSITIVE_INTEGER, default=None,
                         help="stop after N frames")
     parser.add_argument("--seed", type=integer_option(0, MAX_SEED), default=None,
@@ -284,7 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="[NAME=]FILE.csv",
                         help="estimates of another program: columns frame, angle_deg, dx, dy "
                              "[, status]; named NAME or the file's stem; repeatable")
-    scorer.add_argument("--out", type=Path, default=None,
+    scorer.add_argument("--out", type=path_option, default=None,
                         help="run folder (default: results/<sequence folder name>; for a "
                              "suite's runs/<name>/sequence, results/<name>)")
     scorer.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
@@ -307,7 +306,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="comma-separated methods (built-in, entry point or "
                             "package.module:Name; see `egostab methods`), or 'all' (default: "
                             "all the built-in ones)")
-    ideal.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "ideal" / "custom",
+    ideal.add_argument("--out", type=path_option,
+                       default=DEFAULT_RESULTS / "ideal" / "custom",
                        help="output folder (default: results/ideal/custom)")
     ideal.add_argument("--resize", action="store_true",
                        help="scale an image larger than 1280 x 1024 pixels down to fit "
@@ -316,7 +316,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     aggregate = commands.add_parser("aggregate", help="one table from several run folders")
     aggregate.add_argument("runs", nargs="+", type=Path, help="run folders with metrics.json")
-    aggregate.add_argument("--out", type=Path, default=None, help="also write the table here")
+    aggregate.add_argument("--out", type=path_option, default=None,
+                           help="also write the table here")
     aggregate.add_argument("--compact", action="store_true",
                            help="a row per run and a column per method: mean |error| of "
                                 "rotation / x / y and the failure rate")
@@ -331,23 +332,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = commands.add_parser("bench", help="print the speed figures, measured side by side")
     bench.add_argument("--quick", action="store_true", help="fewer repetitions")
-    bench.add_argument("--out", type=Path, default=None,
+    bench.add_argument("--out", type=path_option, default=None,
                        help="also write the figures as Markdown (e.g. results/bench.md)")
     bench.set_defaults(handler=_cmd_bench)
 
     gate = commands.add_parser("gate", help="CI regression gate against results/baseline.json")
-    gate.add_argument("--baseline", type=Path, default=DEFAULT_RESULTS / "baseline.json",
+    gate.add_argument("--baseline", type=path_option,
+                      default=DEFAULT_RESULTS / "baseline.json",
                       help="the baseline to compare with (default: results/baseline.json, "
                            "relative to the current folder: the repository's root)")
     gate.add_argument("--update-baseline", action="store_true",
                       help="rewrite the baseline with this run's metrics (on purpose)")
-    gate.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "gate",
+    gate.add_argument("--out", type=path_option, default=DEFAULT_RESULTS / "gate",
                       help="folder for the gate's runs (default: results/gate)")
     gate.set_defaults(handler=_cmd_gate)
 
     sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise x methods")
     sweep.add_argument("sweep_file", type=Path)
-    sweep.add_argument("--out", type=Path, default=None,
+    sweep.add_argument("--out", type=path_option, default=None,
                        help="sweep folder (default: results/sweeps/<name>; resumable: complete "
                             "runs are skipped)")
     sweep.add_argument("--workers", type=POSITIVE_INTEGER, default=None,

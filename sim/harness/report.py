@@ -269,6 +269,20 @@ def safe_name(method: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", method)
 
 
+def estimates_plot_names(methods: Sequence[str]) -> list[str]:
+    """``estimates_<method>.png`` per method, its name made safe for a file; methods whose safe
+    names coincide (``a/b`` and ``a_b``, names of other scripts) get ``_2``, ``_3``... in their
+    order, so that no plot overwrites another."""
+    names, taken = [], set()
+    for method in methods:
+        stem, count = f"estimates_{safe_name(method)}", 1
+        while (name := stem + (f"_{count}" if count > 1 else "") + ".png") in taken:
+            count += 1
+        taken.add(name)
+        names.append(name)
+    return names
+
+
 def save_figure(figure: Figure, path: Path) -> Path:
     FigureCanvasAgg(figure)
     with atomic_path(path) as temporary:
@@ -383,8 +397,8 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
     records = list(records)
     plot_paths = ()
     if plots:
-        plot_paths = tuple(run_dir / f"estimates_{safe_name(method)}.png"
-                           for method in summary.methods) + (run_dir / HISTOGRAMS_PNG,)
+        plot_paths = tuple(run_dir / name for name in estimates_plot_names(summary.methods)) \
+            + (run_dir / HISTOGRAMS_PNG,)
     files = RunFiles(run_dir, run_dir / FRAMES_CSV, run_dir / METRICS_JSON,
                      run_dir / SUMMARY_MD, plot_paths,
                      None if recording is None else Path(recording))
@@ -476,11 +490,17 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
     error of rotation (deg) / x (px) / y (px) and the failure rate (the README's layout). With
     ``out_path`` the table is also written there (atomically).
     """
+    from sim.harness.atomic import prepare_output_dir
+
     runs = [Path(run) for run in run_dirs]
     if not runs:
         raise ValueError("no runs to aggregate; give one or more run folders")
+    if out_path is not None and Path(out_path).is_dir():
+        raise ValueError(f"--out {out_path}: is a folder; accepted: the path of a file for the "
+                         "table")
     table = _compact_table(runs) if compact else _long_table(runs)
-    if out_path is not None:
+    if out_path is not None:  # its folder made only now: a refused table leaves none behind
+        prepare_output_dir(Path(out_path).parent, option="--out's folder")
         write_text_atomic(out_path, table + "\n")
     return table
 

@@ -192,7 +192,11 @@ def read_estimates(path: Path, n_frames: int) -> tuple[dict, str]:
 
     import csv
 
-    data = Path(path).read_bytes()
+    try:
+        data = Path(path).read_bytes()
+    except OSError as error:
+        raise FileValueError(str(path), "file", f"cannot be read ({error.strerror or error})",
+                             "an estimates CSV file (docs/sequence-format.md)") from None
     try:
         return _read_estimates(path, data.decode("utf-8-sig"), n_frames), \
             hashlib.sha256(data).hexdigest()
@@ -258,9 +262,11 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
 
 
 def parse_estimates_argument(text: str) -> tuple[str, str]:
-    """``NAME=FILE.csv`` or ``FILE.csv`` (named by its stem) -> (name, file)."""
+    """``NAME=FILE.csv`` or ``FILE.csv`` (named by its stem) -> (name, file). A file whose
+    path holds "=" (``run=3/est.csv``) is taken whole when the part after the first "=" is no
+    file and the whole is one."""
     name, separator, path = text.partition("=")
-    if not separator:
+    if not separator or (not Path(path.strip()).is_file() and Path(text).is_file()):
         name, path = Path(text).stem, text
     name, path = name.strip(), path.strip()
     if not name or not path:

@@ -108,6 +108,16 @@ def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def path_option(text: str) -> Path:
+    """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
+    refused rather than taken for the working directory."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: a path (an empty one, such as an "
+                                         "unset shell variable, is refused; '.' is the working "
+                                         "directory)")
+    return Path(text)
+
+
 #: The ``type`` of an option that counts something: workers, frames.
 POSITIVE_INTEGER = integer_option(1)
 #: The largest seed: seeds are stored and logged as signed 64-bit integers.

@@ -296,3 +296,35 @@ def test_a_scores_default_folder_is_named_after_its_sequence_or_its_suite_run(tm
                                "sequence")) == "office__default__scene1000__seed0"
     monkeypatch.chdir(tmp_path)
     assert _sequence_name(Path(".")) == tmp_path.name
+
+
+def test_all_methods_may_be_written_with_spaces_or_a_trailing_comma():
+    from stabilizer import available_methods
+
+    for text in (" all", "all,", " all , "):
+        args = build_parser().parse_args(["run", "--methods", text])
+        assert args.methods == available_methods()
+
+
+def test_an_empty_output_path_is_refused_not_taken_for_the_working_directory(tmp_path,
+                                                                            monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    for command in (["run"], ["record"], ["sweep", "s.toml"], ["aggregate", "r"]):
+        with pytest.raises(SystemExit) as exited:
+            main([*command, "--out", ""])
+        assert exited.value.code == 2
+        assert "an empty one" in _one_line_error(capsys, command[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_aggregate_refuses_a_folder_as_its_table_and_leaves_no_folder_when_refused(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_folder").mkdir()
+    assert main(["aggregate", "no_run", "--out", "new/t.md"]) == 2
+    _one_line_error(capsys, "aggregate")
+    assert not (tmp_path / "new").exists()
+    run = Path(__file__).parents[3] / "results" / "corridor_straight"
+    for folder in ("a_folder", "."):
+        assert main(["aggregate", str(run), "--out", folder]) == 2
+        assert "is a folder" in _one_line_error(capsys, "aggregate")

@@ -233,6 +233,8 @@ def test_a_refused_gate_leaves_no_new_folder_and_names_a_folder_given_as_baselin
     assert "--out a_file: exists and is not a folder" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
     (tmp_path / "a_folder").mkdir()
-    for folder in ("a_folder", ""):
-        assert main(["gate", "--baseline", folder]) == 2
-        assert "is a folder" in capsys.readouterr().err
+    assert main(["gate", "--baseline", "a_folder"]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exited:  # an unset shell variable: not the folder "."
+        main(["gate", "--baseline", ""])
+    assert exited.value.code == 2 and "an empty one" in capsys.readouterr().err

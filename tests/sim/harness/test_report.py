@@ -302,3 +302,11 @@ def test_a_table_cell_from_another_program_stays_one_cell():
     header, rule, row = table.splitlines()
     assert row == "| mine\\|v2 | lost track 3, a\\|b 1 |"
     assert row.replace("\\|", "").count("|") == header.count("|")
+
+
+def test_methods_whose_file_names_coincide_get_a_plot_each():
+    from sim.harness.report import estimates_plot_names
+
+    names = estimates_plot_names(["t2fuzzy", "a/b", "a_b", "a|b", "a_b_2", "日本", "中国"])
+    assert len(set(names)) == len(names)
+    assert names[:3] == ["estimates_t2fuzzy.png", "estimates_a_b.png", "estimates_a_b_2.png"]

@@ -319,3 +319,22 @@ def test_the_recorded_digest_is_of_the_estimates_scored_even_if_the_file_changes
                                 estimates={"mine": str(path)}, record=False))
     assert metrics["run"]["estimates_sha256"]["mine"] == hashlib.sha256(scored_bytes).hexdigest()
     assert sum(row["status"] == "ok" for row in _rows(tmp_path / "o")) == N_FRAMES - 1
+
+
+def test_an_estimates_path_holding_an_equals_sign_is_scored_and_a_missing_one_named(
+        folders, tmp_path, monkeypatch, capsys):
+    from sim.harness.score import parse_estimates_argument
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run=3").mkdir()
+    _estimates_from_truth(folders / "sequence", tmp_path / "run=3" / "est.csv")
+    assert parse_estimates_argument("run=3/est.csv") == ("est", "run=3/est.csv")
+    assert parse_estimates_argument("x=run=3/est.csv") == ("x", "run=3/est.csv")
+    assert main(["score", str(folders / "sequence"), "--estimates", "run=3/est.csv",
+                 "--out", "scored", "--no-record", "--quiet"]) == 0
+    assert {row["method"] for row in _rows(tmp_path / "scored")} == {"est"}
+    assert main(["score", str(folders / "sequence"), "--estimates", "nope.csv",
+                 "--out", "none", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "nope.csv" in err and "an estimates CSV file" in err and "\n" not in err
+    assert not (tmp_path / "none").exists()
