@@ -110,12 +110,13 @@ def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
 
 def path_option(text: str) -> Path:
     """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
-    refused rather than taken for the working directory."""
+    refused rather than taken for the working directory, and a leading ``~`` that the shell
+    left (quoted, or ``--out=~/x``) is the home folder, as the printed path then says."""
     if not text.strip():
         raise argparse.ArgumentTypeError(f"{text!r}: accepted: a path (an empty one, such as an "
                                          "unset shell variable, is refused; '.' is the working "
                                          "directory)")
-    return Path(text)
+    return Path(text).expanduser()
 
 
 #: The ``type`` of an option that counts something: workers, frames.

@@ -328,3 +328,9 @@ def test_aggregate_refuses_a_folder_as_its_table_and_leaves_no_folder_when_refus
     for folder in ("a_folder", "."):
         assert main(["aggregate", str(run), "--out", folder]) == 2
         assert "is a folder" in _one_line_error(capsys, "aggregate")
+
+
+def test_a_tilde_the_shell_left_in_an_output_path_is_the_home_folder(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    args = build_parser().parse_args(["run", "--out=~/runs/a"])
+    assert args.out == tmp_path / "home" / "runs" / "a"
