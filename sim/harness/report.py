@@ -30,7 +30,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from sim.harness.atomic import atomic_path, write_text_atomic
+from sim.harness.atomic import atomic_path, prepare_output_dir, write_text_atomic
 from sim.harness.provenance import provenance
 from sim.harness.scoring import AXES, AXIS_UNITS, RECORD_FIELDS, FrameRecord, MethodScore, RunSummary
 
@@ -490,8 +490,6 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
     error of rotation (deg) / x (px) / y (px) and the failure rate (the README's layout). With
     ``out_path`` the table is also written there (atomically).
     """
-    from sim.harness.atomic import prepare_output_dir
-
     runs = [Path(run) for run in run_dirs]
     if not runs:
         raise ValueError("no runs to aggregate; give one or more run folders")

@@ -78,6 +78,14 @@ class RunConfig:
     progress: bool = False
     workers: int | None = 1
 
+    def __post_init__(self):
+        from sim.harness.sequence import holds_sequence
+
+        # A run's files would mix with the sequence's (score refuses the same).
+        if holds_sequence(self.out_dir):
+            raise ValueError(f"--out {self.out_dir}: holds a recorded sequence; accepted: a "
+                             "folder of its own for the run")
+
 
 def scenario_name(scenario: str | os.PathLike) -> str:
     """The run's name for a scenario given by name or path (its file stem)."""

@@ -173,6 +173,17 @@ class TruthRow:
         return " ".join(repr(float(v)) for v in (self.time_s, *self.cam_pos, *quaternion))
 
 
+def holds_sequence(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a sequence of this format (complete or not): its sequence.json
+    names the format."""
+    try:
+        header = json.loads((Path(folder) / SEQUENCE_JSON).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(header, dict) and str(header.get("format", "")).startswith(
+        f"{FORMAT_NAME}/")
+
+
 def check_recording_folder(out_dir: str | Path) -> None:
     """Refuse a folder that holds what a recording replaces (``depth/``, ``exact/``,
     sequence.json, truth.csv, groundtruth.txt) but no sequence of this format: recording there
@@ -182,15 +193,8 @@ def check_recording_folder(out_dir: str | Path) -> None:
     folder = Path(out_dir)
     present = [name for name in (DEPTH_DIR, EXACT_DIR, SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT)
                if (folder / name).exists()]
-    if not present:
+    if not present or holds_sequence(folder):
         return
-    try:
-        header = json.loads((folder / SEQUENCE_JSON).read_text(encoding="utf-8"))
-        if isinstance(header, dict) and str(header.get("format", "")).startswith(
-                f"{FORMAT_NAME}/"):
-            return
-    except (OSError, UnicodeDecodeError, ValueError):
-        pass
     raise FileValueError(str(folder), "folder", f"holds {', '.join(present)} but no sequence "
                          f"of format {FORMAT_NAME} (a recording would replace them)",
                          "a new or empty folder, one of other files, or a sequence folder to "

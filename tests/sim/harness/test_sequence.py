@@ -241,3 +241,16 @@ def test_the_default_scenario_records_within_60_mb(tmp_path):
     record(RecordConfig(scenario=DEFAULT_SCENARIO, out_dir=str(tmp_path / "s"), max_frames=30))
     size = sum(path.stat().st_size for path in (tmp_path / "s").rglob("*") if path.is_file())
     assert size / 30 * n_frames <= 60e6
+
+
+def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys):
+    from sim.harness.cli import main
+
+    folder = tmp_path / "seq"
+    shutil.copytree(sequence_dir, folder)
+    before = sorted(path.name for path in folder.iterdir())
+    assert main(["run", CI_CORRIDOR, "--out", str(folder), "--max-frames", "2", "--no-record",
+                 "--methods", "ecc", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "holds a recorded sequence" in err and "\n" not in err
+    assert sorted(path.name for path in folder.iterdir()) == before
