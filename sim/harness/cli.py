@@ -85,12 +85,10 @@ def _cmd_record(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.runner import RecordConfig, record, scenario_name
     from sim.harness.scenario import load_scenario
-    from sim.harness.sequence import check_recording_folder
 
     load_scenario(args.scenario)  # a bad scenario is reported before any folder is made
-    out = args.out or DEFAULT_SEQUENCES / scenario_name(args.scenario)
-    check_recording_folder(out)  # the user's own files there are not overwritten
-    out_dir = prepare_output_dir(out)
+    # record() refuses a folder of the user's own files before simulating (it exists already).
+    out_dir = prepare_output_dir(args.out or DEFAULT_SEQUENCES / scenario_name(args.scenario))
     header = record(RecordConfig(scenario=args.scenario, out_dir=str(out_dir),
                                  max_frames=args.max_frames, seed=args.seed,
                                  progress=not args.quiet))
