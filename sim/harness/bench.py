@@ -25,9 +25,12 @@ Run: ``python -m sim.harness.bench`` for the stabilizers alone (options: ``--fra
 
 from __future__ import annotations
 
+from sim.harness.cpu_paths import pin_cpu_paths
 from sim.harness.threads import limit_threads
 
-limit_threads()  # before numpy and OpenCV load: the figures are for one core
+# Before numpy and OpenCV load: the code paths of every run, and one core.
+pin_cpu_paths()
+limit_threads()
 
 import argparse
 import dataclasses

@@ -72,7 +72,12 @@ def git_state(root: Path = SOURCE_ROOT) -> dict[str, str | bool | None]:
 
 
 def provenance() -> dict:
-    """Versions and git state, as stored in metrics.json and in the recording."""
+    """Versions, git state, the platform and the SIMD code paths the libraries were pinned to
+    (sim.harness.cpu_paths; empty: not pinned), as stored in metrics.json and in the
+    recording."""
+    from sim.harness.cpu_paths import cpu_paths_in_effect
+
     state = git_state()
     return {"versions": package_versions(), "git_commit": state["commit"],
-            "git_dirty": state["dirty"], "platform": platform.platform()}
+            "git_dirty": state["dirty"], "platform": platform.platform(),
+            "cpu_paths": cpu_paths_in_effect()}

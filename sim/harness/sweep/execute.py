@@ -27,6 +27,7 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
                                     plan_sweep, split_done)
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
+from sim.harness.cpu_paths import cpu_paths_in_effect
 from sim.harness.threads import limit_threads, single_thread_environment_vars
 from sim.harness.validation import is_int
 
@@ -213,7 +214,8 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
     if started_here:
         with signal_handlers_kept():
             ray.init(address=ray_address, include_dashboard=False,
-                     runtime_env={"env_vars": single_thread_environment_vars()})
+                     runtime_env={"env_vars": {**single_thread_environment_vars(),
+                                               **cpu_paths_in_effect()}})
     in_flight: dict[Any, SweepRun] = {}
     try:
         remote_run = ray.remote(num_cpus=1, max_retries=0)(_run_as_ray_task)
