@@ -16,6 +16,7 @@ import argparse
 import os
 import signal
 import sys
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import NoReturn
 
@@ -395,6 +396,11 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
     except BrokenPipeError:  # the reader has gone (`egostab list | head -1`): end quietly
         _discard_output()
         return BROKEN_PIPE_STATUS
+    except BrokenProcessPool:  # a method crashed a worker (a segfault in native code, os._exit)
+        print(f"{command}: error: a worker process died while estimating (a method crashed "
+              f"it, in native code or by os._exit); the run folder keeps the frames scored "
+              f"before, with the status 'error'", file=sys.stderr)
+        return 1
     except OSError as error:  # a missing file, a permission, a full disk: the user's to fix
         print(f"{command}: error: {_describe_os_error(error)}", file=sys.stderr)
         return 2

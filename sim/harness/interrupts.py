@@ -151,3 +151,9 @@ def _flush_standard_streams() -> None:
         # Closed, a broken pipe, or a signal handled in the middle of a write to it.
         with suppress(OSError, ValueError, RuntimeError, AttributeError):
             stream.flush()
+
+
+def user_can_interrupt() -> bool:
+    """Whether a KeyboardInterrupt here may be the user's Ctrl-C: not in a worker process, which
+    ignores SIGINT (``threads.single_thread_pool``), where only code can raise one."""
+    return signal.getsignal(signal.SIGINT) is not signal.SIG_IGN

@@ -33,6 +33,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from sim.harness.interrupts import user_can_interrupt
 from stabilizer import Stabilizer, available_methods
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
@@ -202,10 +203,11 @@ class PluginStabilizer:
             try:
                 with _as_it_was():
                     self._estimate = target(_read_only_copy(self.reference), **params).estimate
-            except KeyboardInterrupt:
-                raise
-            # A plugin's bug (a sys.exit() too) fails its frames, not the run.
+            # A plugin's bug (a sys.exit() too, and a KeyboardInterrupt where the user cannot
+            # have pressed Ctrl-C) fails its frames, not the run.
             except BaseException as error:
+                if isinstance(error, KeyboardInterrupt) and user_can_interrupt():
+                    raise
                 self._failure = Motion.failed(f"exception:{type(error).__name__}",
                                               message=str(error), stage="reference")
         else:

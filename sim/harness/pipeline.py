@@ -69,7 +69,7 @@ class PipelinedFrames:
     Args:
         source: the frames.
         methods: the methods to run.
-        pool: a ``multiprocessing`` pool (``threads.single_thread_pool``), left open.
+        pool: a pool of worker processes (``threads.single_thread_pool``), left open.
         workers: its processes.
         reference_policy: the scenario's ``evaluation.reference``.
         keep_images: send back the estimates' diagnostic images (a recording shows them).
@@ -106,8 +106,8 @@ class PipelinedFrames:
             reference = self.references.reference_for(item.frame, item.gait_cycle)
             reference_image = _Image(reference.index, reference.disparity8)
             frame_image = _Image(item.frame.index, item.frame.disparity8)
-            self._started[frame_image.index] = (reference.index, self.pool.apply_async(
-                _estimate, (self.methods, reference_image, frame_image, self.keep_images)))
+            self._started[frame_image.index] = (reference.index, self.pool.submit(
+                _estimate, self.methods, reference_image, frame_image, self.keep_images))
             waiting.append((item, self.source.fall, self.source.sim_time_s))
             if len(waiting) > self.ahead:
                 yield self._take(waiting)
@@ -126,7 +126,7 @@ class PipelinedFrames:
             raise RuntimeError(f"frame {frame.index}: estimated against frame "
                                f"{reference_index}, scored against frame {reference.index}")
         if not isinstance(result, dict):
-            result = result.get()
+            result = result.result()
             self._started[frame.index] = (reference_index, result)
         estimate, analysis_ms = result.pop(method)
         if not result:

@@ -291,6 +291,10 @@ def save_figure(figure: Figure, path: Path) -> Path:
     return path
 
 
+#: Estimates and errors beyond this (degrees or pixels) are drawn at it.
+PLOT_LIMIT = 1e9
+
+
 def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> Path:
     """Fig. 8/9 style: rotation, x and y over time, estimate against truth, for one method.
 
@@ -310,7 +314,9 @@ def plot_estimates(path: Path, records: Sequence[FrameRecord], method: str) -> P
                if record.reference_index != previous.reference_index]
     for ax, axis in zip(axes, AXES):
         truth = np.array([record.truth_of(axis) for record in records])
-        estimate = np.array([record.estimate_of(axis) for record in records])
+        # Any finite estimate is scored; one near the float range would break the axis ticks.
+        estimate = np.clip([record.estimate_of(axis) for record in records], -PLOT_LIMIT,
+                           PLOT_LIMIT)
         ax.plot(times, truth, color="black", linewidth=1.2, label="ground truth")
         if axis != "rotation":
             ax.fill_between(times, truth - residual, truth + residual, color="0.85",
@@ -351,8 +357,9 @@ def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
     figure.subplots_adjust(left=0.06, right=0.99, bottom=0.13, top=0.97, wspace=0.25)
     axes = figure.subplots(1, 3)
     for ax, axis in zip(axes, AXES):
-        errors = {method: np.array([r.error_of(axis) for r in records
-                                    if r.method == method and r.scored]) for method in methods}
+        errors = {method: np.minimum([r.error_of(axis) for r in records
+                                      if r.method == method and r.scored], PLOT_LIMIT)
+                  for method in methods}
         pooled = np.concatenate([values for values in errors.values()] or [np.empty(0)])
         if pooled.size == 0:
             ax.text(0.5, 0.5, "no scored frames", ha="center", va="center",
@@ -388,8 +395,9 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
         status: how the run ended, e.g. "complete", "interrupted", "fell at 3.2 s".
         plots: draw the PNG plots (about 0.2 s per method).
         recording: the run's .rrd (written by ``sim.harness.recording.RunRecorder``), to list it.
-        plot_pool: a ``multiprocessing`` pool that draws the per-method plots (each gets its
-            method's records) while this process draws the histograms; None: all here.
+        plot_pool: a pool of worker processes (``threads.single_thread_pool``) that draws the
+            per-method plots (each gets its method's records) while this process draws the
+            histograms; None: all here.
     """
     if not isinstance(status, str) or not status:
         raise ValueError(f"status must be a non-empty string such as 'complete'; got {status!r}")
@@ -406,13 +414,13 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
     if plots:
         jobs = [(path, [record for record in records if record.method == method], method)
                 for method, path in zip(summary.methods, plot_paths)]
-        drawn = plot_pool.starmap_async(plot_estimates, jobs) if plot_pool else None
+        drawn = [plot_pool.submit(plot_estimates, *job) for job in jobs] if plot_pool else None
         if drawn is None:
             for job in jobs:
                 plot_estimates(*job)
         plot_error_histograms(plot_paths[-1], records, summary.methods)
-        if drawn is not None:
-            drawn.get()
+        for plot in drawn or ():
+            plot.result()
     context = dict(scenario=scenario, summary=summary, meta=meta, status=status, files=files)
     write_text_atomic(files.summary_md, summary_markdown(**context))
     document = metrics_document(**context)

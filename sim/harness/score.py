@@ -190,8 +190,6 @@ def read_estimates(path: Path, n_frames: int) -> tuple[dict, str]:
     is refused with its line number."""
     from sim.harness.validation import FileValueError
 
-    import csv
-
     try:
         data = Path(path).read_bytes()
     except OSError as error:
@@ -204,9 +202,11 @@ def read_estimates(path: Path, n_frames: int) -> tuple[dict, str]:
         raise FileValueError(str(path), "encoding", f"is not UTF-8 text ({error.reason} at byte "
                              f"{error.start})", "a UTF-8 CSV file (a byte-order mark is "
                              "allowed)") from None
-    except csv.Error as error:  # a field beyond the csv module's size limit, say
-        raise FileValueError(str(path), "row", f"is not CSV ({error})",
-                             "rows of frame, angle_deg, dx, dy and optionally status") from None
+
+
+def _shortened(text: str, limit: int = 40) -> str:
+    """``text`` cut to ``limit`` characters (a quote left open takes in the rest of the file)."""
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
@@ -220,26 +220,43 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     # byte-order mark. newline="": the csv module reads the line endings itself.
     with io.StringIO(text, newline="") as handle:
         reader = csv.DictReader(handle)
-        header = [name.strip() for name in (reader.fieldnames or ())]
+        try:
+            header = [name.strip() for name in (reader.fieldnames or ())]
+        except csv.Error as error:
+            raise FileValueError(f"{path}:1", "header", f"is not CSV ({error})",
+                                 f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally "
+                                 f"status") from None
         missing = [name for name in ESTIMATE_COLUMNS if name not in header]
         if missing:
             raise FileValueError(f"{path}:1", "header", f"lacks column(s) {', '.join(missing)}",
                                  f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status")
         reader.fieldnames = header
-        for line, cells in enumerate(reader, start=2):
-            where = f"{path}:{line}"
+        while True:
+            try:
+                cells = next(reader, None)
+            except csv.Error as error:  # a field beyond the csv module's size limit, say
+                # The line being read when the error came is not counted yet.
+                raise FileValueError(f"{path}:{reader.line_num + 1}", "row",
+                                     f"is not CSV ({error})",
+                                     "rows of frame, angle_deg, dx, dy and optionally "
+                                     "status") from None
+            if cells is None:
+                break
+            # The line the row ends on: blank lines are skipped, a quoted field may span lines.
+            where = f"{path}:{reader.line_num}"
 
             def number(name: str) -> float:
                 text = (cells.get(name) or "").strip()
                 try:
                     return float(text)
                 except ValueError:
-                    raise FileValueError(where, name, f"{text!r} is not a number",
+                    raise FileValueError(where, name, f"{_shortened(text)!r} is not a number",
                                          "a number") from None
 
             text = (cells.get("frame") or "").strip()
             if not (text.isascii() and text.isdigit()):
-                raise FileValueError(where, "frame", f"{text!r} is not a frame number",
+                raise FileValueError(where, "frame",
+                                     f"{_shortened(text)!r} is not a frame number",
                                      f"an integer from 0 to {n_frames - 1}")
             frame = int(text)
             if frame >= n_frames:
@@ -370,7 +387,7 @@ class _EstimationPool:
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
         self.processes = single_thread_pool(min(workers, len(tasks)))
-        self.results = self.processes.imap(_estimate_chunk, tasks)
+        self.results = self.processes.map(_estimate_chunk, tasks)
         self.ready: dict[tuple[str, int], Any] = {}
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
 
@@ -393,4 +410,3 @@ class _EstimationPool:
 
     def close(self) -> None:
         self.processes.terminate()
-        self.processes.join()

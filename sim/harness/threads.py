@@ -63,15 +63,58 @@ def worker_count(workers: int | None, wanted: int) -> int:
     return max(1, min(wanted, cores or 1))
 
 
-def single_thread_pool(processes: int):
-    """A pool of ``processes`` spawn processes, each on one OpenCV and one BLAS/OpenMP thread
-    and deaf to Ctrl-C (it reaches the whole process group: the parent ends the work and
-    terminates the pool). A context manager that terminates the pool on exit."""
-    import multiprocessing
+def single_thread_pool(processes: int) -> "WorkerPool":
+    """A :class:`WorkerPool` of ``processes`` spawn processes."""
+    return WorkerPool(processes)
 
-    with single_thread_environment():
-        return multiprocessing.get_context("spawn").Pool(processes,
-                                                         initializer=_init_single_thread_worker)
+
+class WorkerPool:
+    """Spawn worker processes, each on one OpenCV and one BLAS/OpenMP thread and deaf to Ctrl-C
+    (it reaches the whole process group: the parent ends the work and terminates the pool).
+
+    ``submit(fn, *args)`` gives a future; ``map(fn, items)`` the results in order. A worker
+    that dies (a method's segfault, an ``os._exit``) fails every pending result with
+    ``concurrent.futures.process.BrokenProcessPool`` instead of leaving its task to wait for
+    ever (``multiprocessing.Pool`` replaces the worker and loses the task). Workers start on
+    demand, so the single-thread environment is kept while the pool lives: a worker's BLAS
+    reads it before anything in the worker loads numpy. A context manager that terminates the
+    pool on exit.
+    """
+
+    def __init__(self, processes: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self._environment = single_thread_environment()
+        self._environment.__enter__()
+        self._executor = ProcessPoolExecutor(processes,
+                                             mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_init_single_thread_worker)
+
+    def submit(self, fn, /, *args):
+        return self._executor.submit(fn, *args)
+
+    def map(self, fn, items):
+        return self._executor.map(fn, items)
+
+    def terminate(self) -> None:
+        """Drop the pending work, end the workers at once, restore the environment."""
+        if self._environment is None:
+            return
+        processes = list((self._executor._processes or {}).values())  # no public handle
+        self._executor.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join()
+        self._environment.__exit__(None, None, None)
+        self._environment = None
+
+    def __enter__(self) -> "WorkerPool":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.terminate()
 
 
 def _init_single_thread_worker() -> None:

@@ -5,6 +5,7 @@ way a method can go wrong; tests refer to them by import path
 from __future__ import annotations
 
 import math
+import os
 import sys
 import warnings
 
@@ -51,6 +52,15 @@ def raising(reference: np.ndarray, current: np.ndarray) -> Motion:
 
 def exits(reference: np.ndarray, current: np.ndarray) -> Motion:
     sys.exit("a library that ends the program")
+
+
+def ends_its_process(reference: np.ndarray, current: np.ndarray) -> Motion:
+    """Ends the process at once, as a crash in native code would (only in a worker process)."""
+    os._exit(70)
+
+
+def raises_keyboard_interrupt(reference: np.ndarray, current: np.ndarray) -> Motion:
+    raise KeyboardInterrupt("a library that raises KeyboardInterrupt itself")
 
 
 class ExitsOnReference:

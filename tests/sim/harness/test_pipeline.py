@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -86,3 +89,16 @@ def test_a_bad_worker_count_is_refused_before_any_work(tmp_path, workers):
     with pytest.raises(ValueError, match="workers must be an integer >= 1"):
         run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"), workers=workers))
     assert not (tmp_path / "run").exists()
+
+
+def test_a_method_that_ends_its_worker_process_ends_the_run_with_an_error_not_a_hang(tmp_path):
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "sim.harness.cli", "run", CI_CORRIDOR, "--methods",
+         "tests.sim.harness.plugin_methods:ends_its_process,ecc", "--workers", "2",
+         "--max-frames", str(N_FRAMES), "--no-record", "--quiet", "--out", str(out)],
+        cwd=Path(__file__).resolve().parents[3], capture_output=True, text=True, timeout=240)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines()[-1].startswith(
+        "egostab run: error: a worker process died while estimating")
+    assert json.loads((out / "metrics.json").read_text())["status"] == "error"

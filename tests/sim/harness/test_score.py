@@ -6,6 +6,9 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -261,8 +264,14 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     ("frame,angle_deg,dx,dy\n0,0,nan,0\n", 2, "dx"),
     ("frame,angle_deg,dx,dy\n0,0,0,0\n".encode("utf-16"), "", "encoding"),
     ("frame,angle_deg,dx,dy\n\u00b2,0,0,0\n", 2, "frame"),
-    ("frame,angle_deg,dx,dy,status\n0,0,0,0," + "x" * 200_000 + "\n", "", "row"),
-])
+    ("frame,angle_deg,dx,dy,status\n0,0,0,0," + "x" * 200_000 + "\n", 2, "row"),
+    ("frame,angle_deg,dx,dy," + "x" * 200_000 + "\n0,0,0,0\n", 1, "header"),
+    # Lines, not rows: a blank line is skipped, a quoted field spans lines.
+    ("frame,angle_deg,dx,dy\n0,0,0,0\n\n1,0,zero,0\n", 4, "dx"),
+    ('frame,angle_deg,dx,dy\n0,0,0,0\n1,"0\n",zero,0\n', 4, "dx"),
+    # A quote left open takes in the rest of the file: the message shows its start only.
+    ('frame,angle_deg,dx,dy\n0,"0,0,0\n' + "1,0,0,0\n" * 1000, 1002, "angle_deg"),
+], ids=lambda value: None if isinstance(value, (int, str)) and len(str(value)) < 20 else "text")
 def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text, line, column):
     path = tmp_path / "bad.csv"
     path.write_bytes(text if isinstance(text, bytes) else text.encode())
@@ -271,7 +280,7 @@ def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text
                  "--out", str(out), "--quiet", "--no-record"]) == 2
     err = capsys.readouterr().err.strip()
     where = f"{path}:{line}" if line else str(path)
-    assert f"{where}: {column}" in err and "\n" not in err
+    assert f"{where}: {column}" in err and "\n" not in err and len(err) < 400
     assert not out.exists()  # refused before the run folder is made
 
 
@@ -338,3 +347,55 @@ def test_an_estimates_path_holding_an_equals_sign_is_scored_and_a_missing_one_na
     err = capsys.readouterr().err.strip()
     assert "nope.csv" in err and "an estimates CSV file" in err and "\n" not in err
     assert not (tmp_path / "none").exists()
+
+
+PLUGINS = "tests.sim.harness.plugin_methods"
+
+
+def _score_command(*args, timeout=240):
+    """``egostab score`` in its own process (a hang fails the test instead of stopping it)."""
+    return subprocess.run([sys.executable, "-m", "sim.harness.cli", "score", *args],
+                          cwd=Path(__file__).resolve().parents[3], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def test_a_method_that_ends_its_worker_process_ends_the_score_with_an_error_not_a_hang(
+        folders, tmp_path):
+    out = tmp_path / "out"
+    done = _score_command(str(folders / "sequence"), "--methods",
+                          f"{PLUGINS}:ends_its_process,ecc", "--workers", "2", "--no-record",
+                          "--quiet", "--out", str(out))
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.splitlines()[-1] == (
+        "egostab score: error: a worker process died while estimating (a method crashed it, "
+        "in native code or by os._exit); the run folder keeps the frames scored before, with "
+        "the status 'error'")
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "error" and "BrokenProcessPool" in metrics["run"]["message"]
+    assert len(_rows(out)) == 2 * metrics["run"]["frames_done"]
+
+
+def test_a_keyboard_interrupt_a_method_raises_in_a_worker_fails_its_frames_not_the_run(
+        folders, tmp_path):
+    out = tmp_path / "out"
+    done = _score_command(str(folders / "sequence"), "--methods",
+                          f"{PLUGINS}:raises_keyboard_interrupt,ecc", "--workers", "2",
+                          "--no-record", "--quiet", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    rows = _rows(out)
+    assert {row["status"] for row in rows if row["method"] != "ecc"} == {
+        "exception:KeyboardInterrupt"}
+    assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's overflows on the way
+def test_estimates_near_the_float_range_are_scored_and_plotted(folders, tmp_path):
+    # Any finite number is a valid estimate; drawn, it once broke the plots' axis ticks.
+    path = tmp_path / "huge.csv"
+    path.write_text("frame,angle_deg,dx,dy\n" + "".join(
+        f"{frame},0,{1.7e308 if frame == 3 else 0.0},0\n" for frame in range(N_FRAMES)))
+    out = tmp_path / "out"
+    assert main(["score", str(folders / "sequence"), "--estimates", f"huge={path}", "--out",
+                 str(out), "--quiet", "--no-record"]) == 0
+    assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
+    assert (out / "estimates_huge.png").stat().st_size and (out / "error_histograms.png").exists()

@@ -43,7 +43,7 @@ def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ig
              "__import__('signal').getsignal(2) == __import__('signal').SIG_IGN)")
     out = _python("from sim.harness.threads import single_thread_pool\n"
                   "with single_thread_pool(1) as pool:\n"
-                  f"    print(*pool.apply(eval, ({probe!r},)))")
+                  f"    print(*pool.submit(eval, {probe!r}).result())")
     assert out == ["1", "1", "1", "True"]
 
 
