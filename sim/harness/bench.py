@@ -25,12 +25,9 @@ Run: ``python -m sim.harness.bench`` for the stabilizers alone (options: ``--fra
 
 from __future__ import annotations
 
-from sim.harness.cpu_paths import pin_cpu_paths
 from sim.harness.threads import limit_threads
 
-# Before numpy and OpenCV load: the code paths of every run, and one core.
-pin_cpu_paths()
-limit_threads()
+limit_threads()  # before numpy and OpenCV load: the figures are for one core
 
 import argparse
 import dataclasses

@@ -380,10 +380,9 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
     command = "egostab"  # until the arguments are read
     try:
         with stop_signals_interrupt():
-            from sim.harness.cpu_paths import pin_cpu_paths
             from sim.harness.threads import limit_threads
 
-            pin_cpu_paths()  # before anything loads numpy or OpenCV, as is the next
+            # Before anything loads numpy or OpenCV (importing sim pinned their SIMD paths).
             limit_threads()
             args = build_parser().parse_args(argv)
             command = f"egostab {args.command}"

@@ -86,3 +86,20 @@ def test_the_egostab_command_puts_numpy_openblas_and_opencv_on_their_avx2_paths(
     assert "*AVX2" in found["opencv"].split()
     assert not [name for name in found["opencv"].split()
                 if name.startswith("*AVX512") and not name.endswith("?")]
+
+
+def _environment_after(code: str) -> dict:
+    clean = {name: value for name, value in os.environ.items()
+             if name not in CPU_PATH_VARIABLES}
+    out = subprocess.run([sys.executable, "-c", code + "\n" + PROBE], env=clean,
+                         capture_output=True, text=True, check=True, timeout=120)
+    return json.loads(out.stdout.splitlines()[-1])["environ"]
+
+
+@pytest.mark.skipif(not pinned_paths(), reason="this machine is not Linux x86-64-v3: no pin")
+def test_python_code_importing_the_harness_first_is_pinned_and_after_numpy_not_at_all():
+    pinned = {name: pinned_paths().get(name) for name in CPU_PATH_VARIABLES}
+    assert _environment_after("from sim.harness.runner import RunConfig, run") == pinned
+    # numpy already on its own paths: pinning OpenCV alone would mix them.
+    assert _environment_after("import numpy\nimport sim.harness.runner") == {
+        name: None for name in CPU_PATH_VARIABLES}
