@@ -77,9 +77,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                             record=not args.no_record, max_frames=args.max_frames,
                             seed=args.seed, progress=not args.quiet, workers=args.workers))
     print(terminal_summary(metrics, out_dir))
-    if metrics["run"].get("message"):
-        print(f"Note: {metrics['run']['message']}")
-    return {"complete": 0, "fell": 0, "interrupted": 130}.get(metrics["status"], 1)
+    return _ending("egostab run", metrics["status"], metrics["run"].get("message", ""))
 
 
 def _cmd_record(args: argparse.Namespace) -> int:
@@ -94,9 +92,19 @@ def _cmd_record(args: argparse.Namespace) -> int:
                                  max_frames=args.max_frames, seed=args.seed,
                                  progress=not args.quiet))
     print(f"sequence folder: {out_dir} ({header['frames']} frames, {header['ended']})")
-    if header["message"]:
-        print(f"Note: {header['message']}")
-    return 130 if header["ended"] == "interrupted" else 0
+    return _ending("egostab record", header["ended"], header["message"])
+
+
+def _ending(command: str, status: str, message: str) -> int:
+    """The exit status of a run or recording that ended with ``status``, after saying how it
+    ended: a stop in one line on stderr, as every stop of the command (status 130), a fall as a
+    note with the results (status 0); a run that ended in error: status 1."""
+    if status == "interrupted":
+        print(f"{command}: {message}", file=sys.stderr)
+        return INTERRUPTED_STATUS
+    if message:
+        print(f"Note: {message}")
+    return 0 if status in ("complete", "fell") else 1
 
 
 def _estimates(text: str) -> tuple[str, str]:
@@ -118,16 +126,15 @@ def _sequence_name(sequence: Path) -> str:
 
 
 def _cmd_score(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
+    from sim.harness.atomic import check_output_path
     from sim.harness.report import terminal_summary
-    from sim.harness.score import ScoreConfig, estimates_by_name, read_estimates, score
+    from sim.harness.score import ScoreConfig, estimates_by_name, score
     from sim.harness.sequence import load_sequence
 
     estimates = estimates_by_name(args.estimates)
-    # A bad sequence or estimates file is reported before any folder is made.
-    sequence = load_sequence(args.sequence)
-    for path in estimates.values():
-        read_estimates(Path(path), sequence.n_frames)
+    # A bad sequence or --out is reported before any folder is made (score() reads each
+    # estimates file once, a pipe too, and refuses a bad one before it makes the folder).
+    load_sequence(args.sequence)
     out = Path(args.out or DEFAULT_RESULTS / _sequence_name(args.sequence))
     if args.out is None and out.resolve().is_relative_to(Path(args.sequence).resolve()):
         raise ValueError(f"the default run folder {out} (results/<sequence name> in the working "
@@ -137,12 +144,10 @@ def _cmd_score(args: argparse.Namespace) -> int:
     config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
                          estimates=estimates, record=not args.no_record, workers=args.workers,
                          progress=not args.quiet)
-    out_dir = prepare_output_dir(out)
+    out_dir = check_output_path(out)
     metrics = score(config)
     print(terminal_summary(metrics, out_dir))
-    if metrics["run"].get("message"):
-        print(f"Note: {metrics['run']['message']}")
-    return {"complete": 0, "fell": 0, "interrupted": 130}.get(metrics["status"], 1)
+    return _ending("egostab score", metrics["status"], metrics["run"].get("message", ""))
 
 
 def _cmd_ideal(args: argparse.Namespace) -> int:

@@ -69,8 +69,10 @@ def score(config: ScoreConfig) -> dict:
     """Score the sequence of ``config``; return the metrics dict also written to metrics.json.
 
     The status is as for ``sim.harness.runner.run``: "complete", "fell" (the recording ended
-    with the robot's fall), "interrupted" or "error".
+    with the robot's fall), "interrupted" or "error". The run folder is made once the sequence,
+    the methods and the estimates files (each read once) are known to be good.
     """
+    from sim.harness.atomic import prepare_output_dir
     from sim.harness.methods import check_methods
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict
@@ -88,6 +90,7 @@ def score(config: ScoreConfig) -> dict:
     if clash:
         raise ValueError(f"{', '.join(clash)} named both as a method and as an estimates file; "
                          f"accepted: each name once")
+    prepare_output_dir(config.out_dir)
     scoring = Scoring(scenario, methods + tuple(file_methods), Path(config.out_dir),
                       record=config.record and scenario.recording.enabled,
                       meta={"sequence": {"path": str(sequence.path), "ended": sequence.ended,
@@ -230,6 +233,10 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
         if missing:
             raise FileValueError(f"{path}:1", "header", f"lacks column(s) {', '.join(missing)}",
                                  f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status")
+        twice = sorted({name for name in header if header.count(name) > 1})
+        if twice:
+            raise FileValueError(f"{path}:1", "header", f"names column {twice[0]} twice",
+                                 "each column once")
         reader.fieldnames = header
         while True:
             try:

@@ -245,6 +245,10 @@ class SequenceWriter:
         simulated time; return sequence.json's content."""
         if ended not in ENDINGS:
             raise ValueError(f"ended must be one of {', '.join(ENDINGS)}; got {ended!r}")
+        # A stop between a frame's images and its row leaves images of a frame the sequence
+        # does not hold: the frames are 0 to len(rows) - 1, each with both images.
+        for folder in (DEPTH_DIR, EXACT_DIR):
+            (self.out_dir / folder / frame_file(len(self.rows))).unlink(missing_ok=True)
         lines = [",".join(TRUTH_COLUMNS)] + [",".join(row.cells()) for row in self.rows]
         write_text_atomic(self.out_dir / TRUTH_CSV, "\n".join(lines) + "\n")
         write_text_atomic(self.out_dir / GROUNDTRUTH_TXT,

@@ -17,9 +17,11 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any, TypeVar
 
+from sim.harness.cpu_paths import cpu_paths_in_effect
 from sim.harness.interrupts import Interrupted, signal_handlers_kept
 from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
@@ -27,7 +29,6 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
                                     plan_sweep, split_done)
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
-from sim.harness.cpu_paths import cpu_paths_in_effect
 from sim.harness.threads import limit_threads, single_thread_environment_vars
 from sim.harness.validation import is_int
 
@@ -136,10 +137,26 @@ def _describe(error: BaseException) -> str:
 
 def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
                ray_address: str | None) -> Iterator[RunOutcome]:
-    """Runs in a spawn process pool; yields outcomes as runs finish."""
+    """Runs in a spawn process pool; yields outcomes as runs finish.
+
+    A run whose worker process dies (a method's crash in native code, an ``os._exit``) breaks
+    the pool, and every run under way or queued in it fails with it: those runs are run again
+    one at a time, each in a pool of its own, so that only the run that crashes ends with the
+    error.
+    """
+    broken: list[SweepRun] = []
+    yield from _run_pool(pending, run_fn, min(workers or os.cpu_count() or 1, len(pending)),
+                         broken)
+    for sweep_run in broken:
+        yield from _run_pool([sweep_run], run_fn, 1, None)
+
+
+def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
+              broken: list[SweepRun] | None) -> Iterator[RunOutcome]:
+    """Runs in one spawn process pool of ``workers``; the runs a broken pool failed go to
+    ``broken`` if given, else are reported with the error."""
     if not pending:
         return
-    workers = min(workers or os.cpu_count() or 1, len(pending))
     context = multiprocessing.get_context("spawn")
     stopping = context.Event()
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
@@ -152,6 +169,9 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
             done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
             for future in done:
                 error = future.exception()
+                if isinstance(error, BrokenProcessPool) and broken is not None:
+                    broken.append(futures[future])
+                    continue
                 yield (RunOutcome(futures[future], None, error=_describe(error)) if error
                        else RunOutcome(futures[future], future.result()))
     except BaseException as error:

@@ -93,6 +93,8 @@ def test_a_run_stopped_by_a_signal_leaves_complete_files(tmp_path, stop):
     assert metrics["status"] == "interrupted", err.decode()
     assert metrics["run"]["message"] == f"interrupted by {stop.name}"
     assert process.returncode == 130
+    # One line on stderr says so (the results' tables go to stdout).
+    assert err.decode().strip().splitlines()[-1] == f"egostab run: interrupted by {stop.name}"
     frames = (run_dir / "frames.csv").read_text().splitlines()
     assert len(frames) == 1 + metrics["run"]["frames_done"]
     assert (run_dir / "summary.md").exists() and (run_dir / "recording.rrd").stat().st_size

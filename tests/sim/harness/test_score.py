@@ -266,6 +266,7 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     ("frame,angle_deg,dx,dy\n\u00b2,0,0,0\n", 2, "frame"),
     ("frame,angle_deg,dx,dy,status\n0,0,0,0," + "x" * 200_000 + "\n", 2, "row"),
     ("frame,angle_deg,dx,dy," + "x" * 200_000 + "\n0,0,0,0\n", 1, "header"),
+    ("frame,angle_deg,dx,dy,status,dx\n0,0,0,0,ok,999\n", 1, "header"),  # which dx?
     # Lines, not rows: a blank line is skipped, a quoted field spans lines.
     ("frame,angle_deg,dx,dy\n0,0,0,0\n\n1,0,zero,0\n", 4, "dx"),
     ('frame,angle_deg,dx,dy\n0,0,0,0\n1,"0\n",zero,0\n', 4, "dx"),
@@ -399,3 +400,23 @@ def test_estimates_near_the_float_range_are_scored_and_plotted(folders, tmp_path
                  str(out), "--quiet", "--no-record"]) == 0
     assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
     assert (out / "estimates_huge.png").stat().st_size and (out / "error_histograms.png").exists()
+
+
+def test_estimates_read_from_a_pipe_are_scored(folders, tmp_path):
+    # A pipe (process substitution, /dev/stdin) can be read once: it was read twice, and the
+    # second read, empty, was refused as lacking the header.
+    import os
+    import threading
+
+    plain = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv").read_bytes()
+    fifo = tmp_path / "estimates.pipe"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=lambda: fifo.write_bytes(plain), daemon=True)
+    writer.start()
+    out = tmp_path / "out"
+    try:
+        assert main(["score", str(folders / "sequence"), "--estimates", f"mine={fifo}",
+                     "--out", str(out), "--quiet", "--no-record"]) == 0
+    finally:
+        writer.join(timeout=10)
+    assert sum(row["status"] == "ok" for row in _rows(out)) == N_FRAMES - 1

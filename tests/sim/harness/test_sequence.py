@@ -186,6 +186,27 @@ def test_an_interrupted_recording_is_a_complete_shorter_sequence(tmp_path,
     assert not list((tmp_path / "seq").rglob(".*.tmp"))
 
 
+def test_a_stop_between_a_frames_two_images_leaves_no_image_of_a_frame_not_held(tmp_path,
+                                                                                 monkeypatch):
+    import sim.harness.sequence
+
+    real, written = sim.harness.sequence.atomic_path, []
+
+    def stop_before_frame_3s_exact_image(path):  # frame 3's depth image is written, its exact one not
+        written.append(path)
+        if len(written) == 8:
+            raise KeyboardInterrupt
+        return real(path)
+
+    monkeypatch.setattr(sim.harness.sequence, "atomic_path", stop_before_frame_3s_exact_image)
+    header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
+                                 max_frames=N_FRAMES))
+    assert header["ended"] == "interrupted" and header["frames"] == 3
+    for images in ("depth", "exact"):
+        assert sorted(path.name for path in (tmp_path / "seq" / images).iterdir()) == [
+            "000000.png", "000001.png", "000002.png"]
+
+
 def test_a_shorter_recording_replaces_a_sequence_without_leaving_its_frames(sequence_dir,
                                                                            tmp_path):
     folder = tmp_path / "seq"

@@ -72,6 +72,14 @@ def failing_run(config: RunConfig) -> dict:
     return fake_run(config)
 
 
+def crashing_run(config: RunConfig) -> dict:
+    """Like fake_run, but the run of seed 1 at noise 2.0 ends its process, as a crash in native
+    code would."""
+    if config.seed == 1 and config.overrides[DEFAULT_NOISE_KEY] == 2.0:
+        os._exit(70)
+    return fake_run(config)
+
+
 def calls(run_dir) -> int:
     path = Path(run_dir) / CALLS_LOG
     return len(path.read_text().splitlines()) if path.exists() else 0
@@ -365,6 +373,18 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     rows = check_table(tmp_path, spec, expected)
     assert len(rows) == 4 * len(METHODS) + 4  # failed runs: one row each, no methods
     assert "4 failed" in result.markdown
+
+
+def test_a_run_that_ends_its_worker_process_fails_alone(tmp_path):
+    # Its crash breaks the pool, and with it every run under way or queued there: those run
+    # again one at a time, so only the crashing run ends with the error.
+    spec = small_spec()
+    result = run_sweep(spec, tmp_path, workers=2, run_fn=crashing_run)
+    crashed = {r.name for r in plan_sweep(spec, tmp_path)
+               if r.seed == 1 and r.config.overrides[DEFAULT_NOISE_KEY] == 2.0}
+    assert {outcome.run.name for outcome in result.failed} == crashed
+    assert all("BrokenProcessPool" in outcome.error for outcome in result.failed)
+    assert sum(outcome.status == "complete" for outcome in result.outcomes) == 8 - len(crashed)
 
 
 def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
