@@ -29,6 +29,8 @@ from typing import Any, Iterator, Mapping, Sequence
 CHUNKS_PER_WORKER = 16
 #: Columns of an estimates file; "status" is optional (default "ok").
 ESTIMATE_COLUMNS = ("frame", "angle_deg", "dx", "dy")
+#: The columns an estimates file's header names in any case.
+KNOWN_COLUMNS = (*ESTIMATE_COLUMNS, "status")
 #: Status of a frame an estimates file does not mention.
 MISSING = "missing"
 
@@ -224,7 +226,9 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     with io.StringIO(text, newline="") as handle:
         reader = csv.DictReader(handle)
         try:
-            header = [name.strip() for name in (reader.fieldnames or ())]
+            # Spreadsheets capitalise: "Status" is the status column, not another one.
+            header = [name.strip().lower() if name.strip().lower() in KNOWN_COLUMNS
+                      else name.strip() for name in (reader.fieldnames or ())]
         except csv.Error as error:
             raise FileValueError(f"{path}:1", "header", f"is not CSV ({error})",
                                  f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally "
@@ -260,15 +264,16 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                     raise FileValueError(where, name, f"{_shortened(text)!r} is not a number",
                                          "a number") from None
 
+            frames = (f"an integer from 0 to {n_frames - 1}" if n_frames
+                      else "no row: the sequence holds no frame")
             text = (cells.get("frame") or "").strip()
             if not (text.isascii() and text.isdigit()):
                 raise FileValueError(where, "frame",
-                                     f"{_shortened(text)!r} is not a frame number",
-                                     f"an integer from 0 to {n_frames - 1}")
+                                     f"{_shortened(text)!r} is not a frame number", frames)
             frame = int(text)
             if frame >= n_frames:
                 raise FileValueError(where, "frame", f"{frame} is not a frame of the sequence",
-                                     f"an integer from 0 to {n_frames - 1}")
+                                     frames)
             if frame in motions:
                 raise FileValueError(where, "frame", f"{frame} appears a second time",
                                      "each frame at most once")

@@ -420,3 +420,25 @@ def test_estimates_read_from_a_pipe_are_scored(folders, tmp_path):
     finally:
         writer.join(timeout=10)
     assert sum(row["status"] == "ok" for row in _rows(out)) == N_FRAMES - 1
+
+
+def test_an_estimates_header_names_its_columns_in_any_case(folders, tmp_path):
+    # A spreadsheet's "Status" column was taken for another column and ignored: its
+    # lost_track rows were scored as estimates.
+    lines = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv").read_text()
+    path = tmp_path / "caps.csv"
+    path.write_text(lines.replace("frame,angle_deg,dx,dy,status", "Frame,Angle_deg,DX,dy,Status",
+                                  1))
+    out = tmp_path / "out"
+    assert main(["score", str(folders / "sequence"), "--estimates", f"caps={path}", "--out",
+                 str(out), "--quiet", "--no-record"]) == 0
+    assert [row["status"] for row in _rows(out)].count("lost_track") == 1
+
+
+def test_scoring_a_recording_cut_short_says_so(tmp_path, interrupt_ground_truth, capsys):
+    interrupt_ground_truth(4)
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
+                        max_frames=N_FRAMES))  # the 4th truth is interrupted; later ones are not
+    assert main(["score", str(tmp_path / "seq"), "--methods", "ecc", "--out",
+                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
+    assert "Note: the sequence's recording was cut short (interrupted" in capsys.readouterr().out

@@ -192,7 +192,7 @@ def test_a_stop_between_a_frames_two_images_leaves_no_image_of_a_frame_not_held(
 
     real, written = sim.harness.sequence.atomic_path, []
 
-    def stop_before_frame_3s_exact_image(path):  # frame 3's depth image is written, its exact one not
+    def stop_before_frame_3s_exact_image(path):  # its depth image is written already
         written.append(path)
         if len(written) == 8:
             raise KeyboardInterrupt
