@@ -19,6 +19,7 @@ import hashlib
 import io
 import math
 import os
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,10 @@ from typing import Any, Iterator, Mapping, Sequence
 CHUNKS_PER_WORKER = 16
 #: Columns of an estimates file; "status" is optional (default "ok").
 ESTIMATE_COLUMNS = ("frame", "angle_deg", "dx", "dy")
+#: A number of an estimates file: decimal, with an optional exponent, or nan/inf (refused
+#: later, in any case, as not finite).
+DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)",
+                     re.IGNORECASE | re.ASCII)
 #: The columns an estimates file's header names in any case.
 KNOWN_COLUMNS = (*ESTIMATE_COLUMNS, "status")
 #: Status of a frame an estimates file does not mention.
@@ -224,7 +229,8 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     # Decoded as utf-8-sig: spreadsheets and some shells (PowerShell, .NET) start UTF-8 with a
     # byte-order mark. newline="": the csv module reads the line endings itself.
     with io.StringIO(text, newline="") as handle:
-        reader = csv.DictReader(handle)
+        # skipinitialspace: writers that separate by ", " quote after the space (`, "ok"`).
+        reader = csv.DictReader(handle, skipinitialspace=True)
         try:
             # Spreadsheets capitalise: "Status" is the status column, not another one.
             header = [name.strip().lower() if name.strip().lower() in KNOWN_COLUMNS
@@ -253,16 +259,19 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                                      "status") from None
             if cells is None:
                 break
+            if not any(value.strip() for value in cells.values() if isinstance(value, str)):
+                continue  # a row of empty cells (`,,,,`), as spreadsheets export below the data
             # The line the row ends on: blank lines are skipped, a quoted field may span lines.
             where = f"{path}:{reader.line_num}"
 
             def number(name: str) -> float:
                 text = (cells.get(name) or "").strip()
-                try:
-                    return float(text)
-                except ValueError:
+                # Python's float() also reads "1_0" and non-ASCII digits: a typo, not a number
+                # any other program writes.
+                if not DECIMAL.fullmatch(text):
                     raise FileValueError(where, name, f"{_shortened(text)!r} is not a number",
-                                         "a number") from None
+                                         "a decimal number such as -1.5 or 2e-3")
+                return float(text)
 
             frames = (f"an integer from 0 to {n_frames - 1}" if n_frames
                       else "no row: the sequence holds no frame")

@@ -267,6 +267,8 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
     ("frame,angle_deg,dx,dy,status\n0,0,0,0," + "x" * 200_000 + "\n", 2, "row"),
     ("frame,angle_deg,dx,dy," + "x" * 200_000 + "\n0,0,0,0\n", 1, "header"),
     ("frame,angle_deg,dx,dy,status,dx\n0,0,0,0,ok,999\n", 1, "header"),  # which dx?
+    ("frame,angle_deg,dx,dy\n0,0,1_0,0\n", 2, "dx"),  # Python's float() reads 10
+    ("frame,angle_deg,dx,dy\n0,0,\uff11,0\n", 2, "dx"),  # a full-width digit
     # Lines, not rows: a blank line is skipped, a quoted field spans lines.
     ("frame,angle_deg,dx,dy\n0,0,0,0\n\n1,0,zero,0\n", 4, "dx"),
     ('frame,angle_deg,dx,dy\n0,0,0,0\n1,"0\n",zero,0\n', 4, "dx"),
@@ -442,3 +444,20 @@ def test_scoring_a_recording_cut_short_says_so(tmp_path, interrupt_ground_truth,
     assert main(["score", str(tmp_path / "seq"), "--methods", "ecc", "--out",
                  str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
     assert "Note: the sequence's recording was cut short (interrupted" in capsys.readouterr().out
+
+
+def test_spreadsheet_rows_of_empty_cells_and_quotes_after_a_space_score_as_meant(folders,
+                                                                                tmp_path):
+    lines = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv").read_text()
+    spaced = "\n".join(", ".join(f'"{cell}"' if cell in ("ok", "lost_track") else cell
+                                  for cell in line.split(","))
+                        for line in lines.splitlines())
+    path = tmp_path / "exported.csv"
+    path.write_text(spaced + "\n,,,,\n,,,,\n")
+    scored = []
+    for name, estimates in (("plain", tmp_path / "plain.csv"), ("exported", path)):
+        out = tmp_path / name
+        assert main(["score", str(folders / "sequence"), "--estimates", f"mine={estimates}",
+                     "--out", str(out), "--quiet", "--no-record"]) == 0
+        scored.append(_rows(out))
+    assert scored[0] == scored[1]
