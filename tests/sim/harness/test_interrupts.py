@@ -84,6 +84,8 @@ def test_a_run_stopped_by_a_signal_leaves_complete_files(tmp_path, stop):
         stderr=subprocess.PIPE)
     try:
         _wait_for(lambda: (run_dir / "metrics.json").exists(), 120)  # the run has started
+        # and its recording is open (on a busy machine that may take more than a second)
+        _wait_for(lambda: list(run_dir.glob(".recording.rrd.*.tmp")), 120)
         time.sleep(1.0)
         process.send_signal(stop)
         out, err = process.communicate(timeout=120)
