@@ -68,7 +68,7 @@ def available_methods() -> tuple[str, ...]:
 
 
 def _estimator_class(method: str):
-    if method not in _METHODS:
+    if not isinstance(method, str) or method not in _METHODS:  # a list is not hashable
         raise ValueError(f"unknown method {method!r}; accepted: {', '.join(_METHODS)}")
     module_name, class_name = _METHODS[method][0].split(":")
     return getattr(importlib.import_module(module_name), class_name)
@@ -97,6 +97,10 @@ class Stabilizer:
             message names the size and the accepted range), or a bad parameter value.
         TypeError: an unknown parameter, or one of the wrong type (a number where the method
             takes a parameter object, say).
+
+    Not for several threads at once: an estimator keeps state between the steps of an
+    estimate (``t2fuzzy``'s rotation search), and Stabilizers of one reference share their
+    check. Parallelism comes from processes, one Stabilizer each, as in the harness.
     """
 
     def __init__(self, reference: np.ndarray, method: str = "t2fuzzy", *,

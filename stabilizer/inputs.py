@@ -159,6 +159,12 @@ def check_integer(name: str, value: Any, least: int, most: int | None = None) ->
         raise ValueError(f"{name} must be an integer {accepted}; got {value!r}")
 
 
+def check_flag(name: str, value: Any) -> None:
+    """ValueError naming ``name`` unless ``value`` is True or False."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+
+
 def check_number(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *,
                  open_low: bool = False, open_high: bool = False) -> None:
     """ValueError naming ``name`` unless ``value`` is a finite real number (not a bool) in the

@@ -131,11 +131,7 @@ def apply_motion(
     across depth edges.
     """
     _check_warp(image, motion, interpolation)
-    height, width = image.shape[:2]
-    return cv2.warpAffine(
-        image, motion_matrix(motion, image.shape), (width, height),
-        flags=interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=0,
-    )
+    return _warped(image, motion_matrix(motion, image.shape), interpolation)
 
 
 def compensate(
@@ -148,14 +144,20 @@ def compensate(
     _check_warp(frame, motion, interpolation)
     if not motion.ok:
         return np.array(frame, copy=True)
-    height, width = frame.shape[:2]
-    return cv2.warpAffine(
-        frame, motion_matrix(motion, frame.shape), (width, height),
-        flags=interpolation | cv2.WARP_INVERSE_MAP,
-        borderMode=cv2.BORDER_CONSTANT, borderValue=0,
-    )
+    return _warped(frame, motion_matrix(motion, frame.shape),
+                   interpolation | cv2.WARP_INVERSE_MAP)
 
 
+def _warped(image: np.ndarray, matrix: np.ndarray, flags: int) -> np.ndarray:
+    """``image`` warped by ``matrix``, uncovered pixels 0, in ``image``'s shape (OpenCV drops
+    a single channel's axis)."""
+    height, width = image.shape[:2]
+    return cv2.warpAffine(image, matrix, (width, height), flags=flags,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0).reshape(image.shape)
+
+
+#: The most channels ``cv2.warpAffine`` warps (opencv-python 5.1).
+MAX_WARP_CHANNELS = 128
 #: Image types ``cv2.warpAffine`` keeps as they are.
 WARP_DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64)
 #: Interpolations ``cv2.warpAffine`` takes.
@@ -178,6 +180,9 @@ def _check_warp(image: np.ndarray, motion: Motion, interpolation: int) -> None:
         raise ValueError(f"image must be a non-empty 2-D (or 2-D with channels) array of "
                          f"{', '.join(np.dtype(kind).name for kind in WARP_DTYPES)}; "
                          f"got {described}")
+    if image.ndim == 3 and image.shape[2] > MAX_WARP_CHANNELS:
+        raise ValueError(f"image must have at most {MAX_WARP_CHANNELS} channels (OpenCV's warp); "
+                         f"got {image.shape[2]}")
     if interpolation not in WARP_INTERPOLATIONS:
         accepted = ", ".join(f"cv2.{name}" for name in WARP_INTERPOLATIONS.values())
         raise ValueError(f"interpolation must be one of {accepted}; got {interpolation!r}")

@@ -82,7 +82,7 @@ from stabilizer.ellipse import (
 )
 from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.histogram_seeds import HistogramSeeds
-from stabilizer.inputs import check_integer, check_number
+from stabilizer.inputs import check_flag, check_integer, check_number
 from stabilizer.it2fcm import IT2FCM, LabelCleaner
 from stabilizer.motion import Motion
 from stabilizer.peers.preparation import clipped, robust_value_range
@@ -138,6 +138,19 @@ class SegmentationParams:
     morph_size: int = 3
     min_object_area: int = 30
 
+    def __post_init__(self):
+        check_integer("bin_width", self.bin_width, 1, 255)
+        check_number("min_ratio", self.min_ratio, 0.0, 1.0, open_high=True)
+        check_number("m1", self.m1, 1.0, open_low=True)
+        check_number("m2", self.m2, self.m1, open_low=True)  # eqs. (2)-(3): 1 < m1 < m2
+        check_number("fcm_tol", self.fcm_tol, 0.0, open_low=True)
+        check_integer("fcm_max_iter", self.fcm_max_iter, 1)
+        check_flag("warm_start", self.warm_start)
+        check_integer("morph_size", self.morph_size, 1)
+        if self.morph_size % 2 == 0:
+            raise ValueError(f"morph_size must be odd; got {self.morph_size}")
+        check_integer("min_object_area", self.min_object_area, 0)
+
 
 @dataclass(frozen=True)
 class FeatureParams:
@@ -181,8 +194,18 @@ class FeatureParams:
     max_centre_shift: float = 20.0
 
     def __post_init__(self):
-        if int(self.min_hole_size) < 1:
-            raise ValueError(f"min_hole_size must be >= 1; got {self.min_hole_size}")
+        if not isinstance(self.wavelet, str):
+            raise ValueError(f"wavelet must be the name of a discrete PyWavelets wavelet; got "
+                             f"{self.wavelet!r}")
+        # A 1280 x 1024 frame (the largest accepted) has 10 Haar levels.
+        check_integer("wavelet_level", self.wavelet_level, 1, 10)
+        check_number("significance", self.significance, 0.0, 1.0, open_high=True)
+        check_flag("merge_details", self.merge_details)
+        check_integer("edge_margin", self.edge_margin, 0, 100)
+        check_integer("min_hole_size", self.min_hole_size, 1, 1000)
+        check_flag("weighted_fit", self.weighted_fit)
+        check_number("min_axis_ratio", self.min_axis_ratio, 1.0)
+        check_number("max_centre_shift", self.max_centre_shift, 0.0)
 
 
 @dataclass(frozen=True)
@@ -553,7 +576,8 @@ class T2FuzzyEstimator:
         refinements."""
         valid = None if current is None else current > 0
         angles, sources = self._angle_estimates(ref_fits, cur_fits, reference, frame)
-        diagnostics.update(object_angles=angles, angle_sources=sources, subbands=self.subbands)
+        diagnostics.update(object_angles=angles, angle_sources=sources,
+                           subbands=list(self.subbands))  # the caller may change it
         robust = self.threshold(angles)
         diagnostics.update(thresholds=(robust.lower, robust.upper), inliers=robust.inliers,
                            threshold_fallback=robust.fallback,

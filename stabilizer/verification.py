@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from stabilizer.fncc import MaskedCorrelation, surface_peak
+from stabilizer.inputs import check_angles, check_integer, check_number
 from stabilizer.motion import (
     Motion,
     image_centre,
@@ -156,38 +157,23 @@ class VerificationParams:
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
 
     def __post_init__(self):
-        if not -1.0 <= self.min_correlation <= 1.0:
-            raise ValueError(f"min_correlation must be in [-1, 1]; got {self.min_correlation}")
-        if self.null_margin < 0:
-            raise ValueError(f"null_margin must be >= 0; got {self.null_margin}")
-        if not 0.0 <= self.min_overlap <= 1.0:
-            raise ValueError(f"min_overlap must be in [0, 1]; got {self.min_overlap}")
-        if not (self.sigma_px > 0 and self.clip_factor > 0):
-            raise ValueError(f"sigma_px and clip_factor must be > 0; "
-                             f"got {self.sigma_px}, {self.clip_factor}")
-        if min(self.max_offset_deg, self.max_offset_px, self.still_deg, self.still_px) < 0:
-            raise ValueError(f"max_offset_deg, max_offset_px, still_deg and still_px must be "
-                             f">= 0; got {self.max_offset_deg}, {self.max_offset_px}, "
-                             f"{self.still_deg}, {self.still_px}")
-        if self.optimum_iterations < 1:
-            raise ValueError(f"optimum_iterations must be >= 1; got {self.optimum_iterations}")
-        if not self.full_resolution_travel_deg >= 0:
-            raise ValueError(f"full_resolution_travel_deg must be >= 0 (math.inf: never); got "
-                             f"{self.full_resolution_travel_deg}")
-        if not self.full_resolution_offset_deg >= 0:
-            raise ValueError(f"full_resolution_offset_deg must be >= 0 (math.inf: never); got "
-                             f"{self.full_resolution_offset_deg}")
-        if not 0.0 <= self.moved_depth_share <= 1.0:
-            raise ValueError(f"moved_depth_share must be in [0, 1]; got {self.moved_depth_share}")
-        if min(self.depth_tolerance_levels, self.depth_tolerance_share,
-               self.depth_tolerance_noise) < 0 or not 0.0 <= self.max_depth_disagreement <= 1.0:
-            raise ValueError(f"depth_tolerance_levels, depth_tolerance_share and "
-                             f"depth_tolerance_noise must be >= 0 and max_depth_disagreement in "
-                             f"[0, 1]; got {self.depth_tolerance_levels}, "
-                             f"{self.depth_tolerance_share}, {self.depth_tolerance_noise}, "
-                             f"{self.max_depth_disagreement}")
-        if not self.candidate_angles_deg:
-            raise ValueError("candidate_angles_deg must hold at least one angle")
+        # Every test compares with these: a NaN would switch one off silently.
+        check_number("min_correlation", self.min_correlation, -1.0, 1.0)
+        for name in ("min_overlap", "moved_depth_share", "max_depth_disagreement"):
+            check_number(name, getattr(self, name), 0.0, 1.0)
+        for name in ("max_offset_deg", "max_offset_px", "null_margin", "still_deg", "still_px",
+                     "depth_tolerance_levels", "depth_tolerance_share", "depth_tolerance_noise"):
+            check_number(name, getattr(self, name), 0.0)
+        check_number("sigma_px", self.sigma_px, 0.0, open_low=True)
+        check_number("clip_factor", self.clip_factor, 0.0, open_low=True)
+        check_integer("optimum_iterations", self.optimum_iterations, 1)
+        for name in ("full_resolution_offset_deg", "full_resolution_travel_deg"):
+            if getattr(self, name) != math.inf:  # math.inf: never
+                check_number(name, getattr(self, name), 0.0)
+        check_number("convincing_correlation", self.convincing_correlation, -1.0, 1.0)
+        for name in ("candidate_margin", "outside_margin", "ridge_margin"):  # may be < 0
+            check_number(name, getattr(self, name))
+        check_angles("candidate_angles_deg", self.candidate_angles_deg)
 
 
 def edge_image(image: np.ndarray, sigma_px: float,

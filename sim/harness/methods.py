@@ -261,7 +261,8 @@ def as_motion(result: Any) -> Motion:
                                      message="a failure's status must be non-empty text")
             return Motion.failed(result.status, **diagnostics)
         values = result.as_tuple()
-    elif isinstance(result, (tuple, list, np.ndarray)) and len(result) == 3:
+    elif (isinstance(result, (tuple, list)) and len(result) == 3
+          or isinstance(result, np.ndarray) and result.shape == (3,)):
         values, diagnostics = tuple(result), {}
     else:
         return Motion.failed(f"wrong_type:{type(result).__name__}",

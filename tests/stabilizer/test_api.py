@@ -36,6 +36,8 @@ def test_mismatched_shapes():
 def test_unknown_method():
     with pytest.raises(ValueError, match="unknown method 'nope'.*t2fuzzy"):
         stabilizer.estimate(REFERENCE, REFERENCE, method="nope")
+    with pytest.raises(ValueError, match=r"unknown method \['sift'\].*t2fuzzy"):  # not hashable
+        stabilizer.Stabilizer(REFERENCE, ["sift"])
 
 
 def test_unknown_parameter_is_rejected():

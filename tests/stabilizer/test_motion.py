@@ -88,8 +88,17 @@ def test_transform_points_inverse_undoes_the_motion():
     (np.zeros((8, 8), np.int64), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError, "int64"),
     (np.zeros((8, 8), bool), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError, "bool"),
     (np.zeros((8, 8), np.uint8), Motion(1.0, 0.0, 0.0), 99, ValueError, "interpolation"),
+    (np.zeros((8, 8, 129), np.uint8), Motion(1.0, 0.0, 0.0), cv2.INTER_NEAREST, ValueError,
+     "at most 128 channels"),  # was OpenCV's own error
 ])
 def test_warping_names_what_it_cannot_take(image, motion, interpolation, error, named):
     for warp in (apply_motion, compensate):
         with pytest.raises(error, match=named):
             warp(image, motion, interpolation)
+
+
+@pytest.mark.parametrize("channels", [1, 3, 128])
+def test_a_warped_image_keeps_its_shape(channels):
+    image = np.arange(8 * 8 * channels, dtype=np.float32).reshape(8, 8, channels)
+    for warp in (apply_motion, compensate):
+        assert warp(image, Motion(3.0, 1.0, -1.0)).shape == (8, 8, channels)

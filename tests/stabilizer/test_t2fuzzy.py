@@ -12,6 +12,7 @@ from stabilizer.t2fuzzy import (
     ROTATION_UNCONVERGED,
     TRANSLATION_DISAGREEMENT,
     FeatureParams,
+    SegmentationParams,
     T2FuzzyEstimator,
     TranslationParams,
 )
@@ -250,11 +251,29 @@ def test_odd_frames_never_crash(frame):
         assert motion.ok == np.isfinite(motion.angle_deg)
 
 
-@pytest.mark.parametrize("group, params", [(FeatureParams, {"min_hole_size": 0}),
-                                           (TranslationParams, {"ncc_sigma": -1.0})])
+@pytest.mark.parametrize("group, params", [
+    (FeatureParams, {"min_hole_size": 0}), (TranslationParams, {"ncc_sigma": -1.0}),
+    # Unchecked, these failed later in OpenCV (out of memory), numpy or the comparisons.
+    (SegmentationParams, {"bin_width": float("inf")}), (SegmentationParams, {"min_ratio": "x"}),
+    (SegmentationParams, {"fcm_tol": float("nan")}), (SegmentationParams, {"m2": 1.5}),
+    (SegmentationParams, {"morph_size": 4}), (SegmentationParams, {"warm_start": 1}),
+    (FeatureParams, {"edge_margin": 100_000}), (FeatureParams, {"wavelet_level": 10**9}),
+    (FeatureParams, {"max_centre_shift": float("nan")}), (FeatureParams, {"weighted_fit": "yes"}),
+    (FeatureParams, {"wavelet": 3}), (FeatureParams, {"significance": 1.0}),
+])
 def test_bad_parameters_are_value_errors(group, params):
     with pytest.raises(ValueError, match=next(iter(params))):
         group(**params)
+
+
+def test_the_diagnostics_are_the_callers_to_change():
+    reference = _scene(3)
+    tracker = stabilizer.Stabilizer(reference)
+    current = apply_motion(reference, Motion(2.0, 3.0, -1.0))
+    first = tracker.estimate(current)
+    first.diagnostics["subbands"].clear()  # was the estimator's own list: then a ValueError
+    again = tracker.estimate(current)
+    assert again.as_tuple() == first.as_tuple() and again.diagnostics["subbands"]
 
 
 def test_too_small_a_frame_for_the_search_range_is_a_value_error():

@@ -586,7 +586,13 @@ def test_thresholds_are_parameters():
                                  dict(depth_tolerance_noise=-1.0),
                                  dict(max_depth_disagreement=1.5),
                                  dict(moved_depth_share=-0.1), dict(moved_depth_share=1.5),
-                                 dict(candidate_angles_deg=())])
+                                 dict(candidate_angles_deg=()),
+                                 # A NaN passed every comparison and switched a test off.
+                                 dict(max_offset_deg=math.nan), dict(max_offset_px=math.inf),
+                                 dict(sigma_px=math.inf), dict(candidate_angles_deg=5.0),
+                                 dict(convincing_correlation="x"), dict(outside_margin=None),
+                                 dict(depth_tolerance_share=math.nan),
+                                 dict(optimum_iterations=2.5)])
 def test_bad_thresholds_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         VerificationParams(**bad)

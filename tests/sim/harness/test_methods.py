@@ -114,6 +114,10 @@ def test_as_motion_keeps_a_good_motion_and_its_diagnostics():
     assert as_motion([1, 2, 3]) == Motion(1.0, 2.0, 3.0)
     assert as_motion(None).status == "wrong_type:NoneType"
     assert as_motion((True, 0.0, 0.0)).status == "wrong_type:bool"
+    # Arrays of any other shape, a 0-d one too (which has no len()), are of the wrong type.
+    assert as_motion(np.array([1.0, 2.0, 3.0])) == Motion(1.0, 2.0, 3.0)
+    for array in (np.array(5.0), np.zeros((3, 1)), np.zeros(4)):
+        assert as_motion(array).status == "wrong_type:ndarray"
 
 
 def test_a_failure_without_text_status_or_with_a_status_diagnostic_is_named():
