@@ -14,8 +14,8 @@ The variables are read once, when each library loads: :func:`pin_cpu_paths` must
 numpy or OpenCV are imported. Importing ``sim`` calls it when neither is loaded yet (so the
 ``egostab`` command does first thing, and so does Python code that imports the harness first);
 processes started afterwards inherit the variables. A value the user set is kept (an empty
-one switches that library's pin off). Elsewhere (another OS or architecture, a CPU below x86-64-v3) nothing is pinned and
-the results may differ from those of a pinned machine.
+one switches that library's pin off). Elsewhere (another OS or architecture, a CPU below
+x86-64-v3) nothing is pinned and the results may differ from those of a pinned machine.
 """
 
 from __future__ import annotations

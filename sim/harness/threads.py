@@ -87,9 +87,13 @@ class WorkerPool:
 
         self._environment = single_thread_environment()
         self._environment.__enter__()
-        self._executor = ProcessPoolExecutor(processes,
-                                             mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_init_single_thread_worker)
+        try:
+            self._executor = ProcessPoolExecutor(processes,
+                                                 mp_context=multiprocessing.get_context("spawn"),
+                                                 initializer=_init_single_thread_worker)
+        except BaseException:  # a bad process count, say: the environment as it was
+            self._environment.__exit__(None, None, None)
+            raise
 
     def submit(self, fn, /, *args):
         return self._executor.submit(fn, *args)

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from sim.harness.threads import THREAD_VARIABLES, worker_count
+from sim.harness.threads import THREAD_VARIABLES, single_thread_pool, worker_count
 
 PROBE = ("import cv2, numpy, os, threadpoolctl; "
          "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info()]; "
@@ -59,3 +59,11 @@ def test_the_default_worker_count_is_what_is_wanted_up_to_one_per_usable_core(
         monkeypatch, cores, wanted, expected):
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
     assert worker_count(None, wanted) == expected
+
+
+def test_a_pool_that_cannot_start_leaves_the_environment_as_it_was(monkeypatch):
+    for name in THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    with pytest.raises(ValueError):
+        single_thread_pool(0)
+    assert not {name for name in THREAD_VARIABLES if name in os.environ}
