@@ -16,7 +16,6 @@ import argparse
 import os
 import signal
 import sys
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import NoReturn
 
@@ -403,7 +402,13 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
     except BrokenPipeError:  # the reader has gone (`egostab list | head -1`): end quietly
         _discard_output()
         return BROKEN_PIPE_STATUS
-    except BrokenProcessPool:  # a method crashed a worker (a segfault in native code, os._exit)
+    except RuntimeError as error:
+        # Imported here: the module costs every command's start 15-20 ms.
+        from concurrent.futures import BrokenExecutor
+
+        if not isinstance(error, BrokenExecutor):
+            raise
+        # A method crashed a worker process (a segfault in native code, os._exit).
         print(f"{command}: error: a worker process died while estimating (a method crashed "
               f"it, in native code or by os._exit); the run folder keeps the frames scored "
               f"before, with the status 'error'", file=sys.stderr)

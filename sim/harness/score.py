@@ -248,6 +248,8 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
             raise FileValueError(f"{path}:1", "header", f"names column {twice[0]} twice",
                                  "each column once")
         reader.fieldnames = header
+        frames = (f"an integer from 0 to {n_frames - 1}" if n_frames
+                  else "no row: the sequence holds no frame")
         while True:
             try:
                 cells = next(reader, None)
@@ -273,8 +275,6 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                                          "a decimal number such as -1.5 or 2e-3")
                 return float(text)
 
-            frames = (f"an integer from 0 to {n_frames - 1}" if n_frames
-                      else "no row: the sequence holds no frame")
             text = (cells.get("frame") or "").strip()
             if not (text.isascii() and text.isdigit()):
                 raise FileValueError(where, "frame",
