@@ -112,9 +112,10 @@ class Stabilizer:
                              f"(stabilizer.verification) or None; got {verification!r}")
         params = {**_METHODS[method][1], **params}
         self.method = method
-        self.reference = as_disparity(reference, "reference",
-                                      min_side=estimator_class.min_side(**params),
-                                      max_side=MAX_SIDE, method=method)
+        # A copy: a caller may fill the same buffer with its next frame.
+        self.reference = np.array(as_disparity(reference, "reference",
+                                               min_side=estimator_class.min_side(**params),
+                                               max_side=MAX_SIDE, method=method))
         self._estimator = estimator_class(self.reference, **params)
         self._verifier = shared_verifier(self.reference, verification) if verification else None
 

@@ -501,7 +501,10 @@ class Verifier:
         """ECC (Euclidean) from ``motion`` on edge images at ``scale`` times full resolution,
         or None when it gives up."""
         shape = self._reference[0].shape
-        warp = motion_matrix(motion, shape).astype(np.float32)
+        with np.errstate(over="ignore"):
+            warp = motion_matrix(motion, shape).astype(np.float32)
+        if not np.isfinite(warp).all():  # a shift beyond float32's range has no optimum
+            return None
         warp[:, 2] *= scale
         (reference, reference_mask), (current, current_mask) = reference_edges, current_edges
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,

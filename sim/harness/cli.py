@@ -56,11 +56,12 @@ def _methods(text: str) -> tuple[str, ...]:
 
 
 def _method_list(text: str) -> tuple[str, ...]:
+    from sim.harness.methods import ALL_BUILT_INS
     from stabilizer import available_methods
 
     # As _methods reads a list: " all" and "all," are "all" too.
     names = [name.strip() for name in text.split(",") if name.strip()]
-    return available_methods() if names == ["all"] else _methods(text)
+    return available_methods() if names == [ALL_BUILT_INS] else _methods(text)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

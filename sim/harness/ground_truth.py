@@ -80,20 +80,39 @@ class Correspondences:
         buffer's alignment, OpenCV's ``magnitude`` on threads), so the same frame gives the same
         figure bit for bit in any process.
         """
-        matrix = motion_matrix(motion, self.shape).astype(np.float32)
         (x, y), (to_x, to_y) = self.source_px.T, self.target_px.T
         squared = np.zeros(len(x), np.float32)
-        for row, target in zip(matrix, (to_x, to_y)):
-            miss = x * row[0]
-            miss += y * row[1]
-            miss += row[2]
-            miss -= target
-            miss *= miss
-            squared += miss
+        with np.errstate(over="ignore", invalid="ignore"):
+            matrix = motion_matrix(motion, self.shape).astype(np.float32)
+            for row, target in zip(matrix, (to_x, to_y)):
+                miss = x * row[0]
+                miss += y * row[1]
+                miss += row[2]
+                miss -= target
+                miss *= miss
+                squared += miss
         total = float(np.cumsum(squared, dtype=np.float64)[-1])
         np.sqrt(squared, out=squared)
         n = len(squared)
-        return float(np.cumsum(squared, dtype=np.float64)[-1]) / n, math.sqrt(total / n)
+        mean = float(np.cumsum(squared, dtype=np.float64)[-1]) / n
+        if math.isfinite(mean) and math.isfinite(total):
+            return mean, math.sqrt(total / n)
+        return self._wide_end_point_error(motion)
+
+    def _wide_end_point_error(self, motion: Motion) -> tuple[float, float]:
+        """:meth:`end_point_error` of a motion whose misses overflow float32 (beyond about
+        1e19 px): in float64, with distances scaled by the largest so that squares do not
+        overflow either; infinite only beyond float64's range."""
+        matrix = motion_matrix(motion, self.shape)
+        source = self.source_px.astype(np.float64)
+        miss = source @ matrix[:, :2].T + matrix[:, 2] - self.target_px
+        distance = np.hypot(miss[:, 0], miss[:, 1])
+        largest = float(distance.max())
+        if not math.isfinite(largest) or largest == 0.0:
+            return largest, largest
+        scaled = distance / largest
+        return (largest * float(np.cumsum(scaled)[-1]) / len(distance),
+                largest * math.sqrt(float(np.cumsum(scaled * scaled)[-1]) / len(distance)))
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,10 @@ class MethodError(ValueError):
         return type(self), (self.name, self.problem)
 
 
+#: What ``--methods`` on the command line reads as every built-in method.
+ALL_BUILT_INS = "all"
+
+
 @dataclass(frozen=True)
 class MethodInfo:
     """An available method and where it comes from (``egostab methods``)."""
@@ -88,6 +92,9 @@ def list_methods() -> list[MethodInfo]:
                  f"{_distribution_text(entry_point)}"
         if entry_point.name in seen:
             origin += " (shadowed: an earlier method has this name)"
+        elif entry_point.name == ALL_BUILT_INS:
+            origin += (f" (not on the command line, where --methods {ALL_BUILT_INS} means every "
+                       f"built-in method; in scenario and sweep files)")
         seen.add(entry_point.name)
         found.append(MethodInfo(entry_point.name, origin))
     return found

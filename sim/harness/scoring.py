@@ -138,7 +138,9 @@ class ErrorStats:
         values = np.asarray(list(errors), dtype=np.float64)
         if values.size == 0:
             return cls(math.nan, math.nan, math.nan, 0)
-        return cls(float(values.mean()), float(values.var()), float(values.max()), values.size)
+        with np.errstate(over="ignore"):  # errors beyond 1e154 have no finite variance
+            variance = float(values.var())
+        return cls(float(values.mean()), variance, float(values.max()), values.size)
 
 
 #: The statistics of no frames (a score read from a metrics.json older than the figure).

@@ -114,6 +114,17 @@ def test_flat_reference_gives_a_status_for_every_frame():
     assert motion.status == "no_structure" and motion.diagnostics["frame"] == "reference"
 
 
+@pytest.mark.parametrize("method", stabilizer.available_methods())
+def test_a_reference_buffer_the_caller_fills_again_leaves_the_stabilizer_as_it_was(method):
+    buffer = REFERENCE.copy()
+    tracker = stabilizer.Stabilizer(buffer, method)
+    buffer[:] = stabilizer.depth_to_disparity(make_depth_scene(5))  # the caller's next frame
+    assert np.array_equal(tracker.reference, REFERENCE)
+    current = apply_motion(REFERENCE, Motion(3.0, 5.0, -2.0))
+    fresh = stabilizer.Stabilizer(REFERENCE.copy(), method).estimate(current)
+    assert tracker.estimate(current).as_tuple() == fresh.as_tuple()
+
+
 def test_float_depth_is_accepted_and_equals_its_disparity():
     depth = make_depth_scene(0)
     from_depth = stabilizer.estimate(depth, depth)

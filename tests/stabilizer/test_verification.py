@@ -73,6 +73,13 @@ def test_a_wrong_motion_fails_with_the_measured_values(wrong, failed):
     assert all(math.isnan(value) for value in checked.as_tuple())
 
 
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("far", [Motion(0.0, 1e25, 0.0), Motion(3.0, -1e300, 1e300)])
+def test_a_shift_beyond_float32s_range_fails_on_its_overlap_without_warnings(far):
+    checked = Verifier(REFERENCE)(CURRENT, far)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "overlap"
+
+
 def test_a_motion_invented_on_frames_that_did_not_move_fails():
     checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(1.5, 1.0, -1.0))
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "no_motion"

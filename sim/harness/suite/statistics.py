@@ -61,6 +61,9 @@ def mean_interval(samples: Sequence[float], seed: int = BOOTSTRAP_SEED) -> Inter
     mean = float(values.mean())
     if values.size < 2:
         return Interval(mean, math.nan, math.nan, 1, "")
+    if values.min() == values.max():  # every resample has this mean: BCa is degenerate
+        return Interval(float(values[0]), float(values[0]), float(values[0]), int(values.size),
+                        PERCENTILE)
     for method in (BCA, PERCENTILE):
         with warnings.catch_warnings():  # a degenerate BCa warns and gives NaN: handled below
             warnings.simplefilter("ignore")

@@ -306,6 +306,16 @@ def test_a_known_offset_from_an_exactly_rigid_truth_has_its_length_as_end_point_
     assert rms == pytest.approx(math.hypot(*offset), abs=1e-4)
 
 
+@pytest.mark.parametrize("offset", [3e19, -1e25, 1e300])
+def test_an_estimate_beyond_float32s_range_has_its_length_as_end_point_error(offset):
+    # The float32 arithmetic overflows at ~1e19 px; such an estimate is still only that far off.
+    truth = ground_truth(*_frames(SQUARE_PIXELS, roll_deg=7.0), intrinsics=SQUARE_PIXELS)
+    shifted = Motion(truth.motion.angle_deg, truth.motion.dx, truth.motion.dy + offset)
+    mean, rms = truth.end_point_error(shifted)
+    assert mean == pytest.approx(abs(offset), rel=1e-9)
+    assert rms == pytest.approx(abs(offset), rel=1e-9)
+
+
 def test_end_point_error_is_nan_for_a_failed_estimate_or_truth():
     truth = ground_truth(*_frames(roll_deg=3.0))
     assert all(math.isnan(v) for v in truth.end_point_error(Motion.failed("no_structure")))

@@ -166,14 +166,15 @@ def test_the_command_line_refuses_it_with_status_2(capsys):
 
 @pytest.fixture
 def installed_entry_points(tmp_path, monkeypatch):
-    """A distribution 'fake-methods 0.3' on sys.path declaring two entry points."""
+    """A distribution 'fake-methods 0.3' on sys.path declaring three entry points."""
     dist_info = tmp_path / "fake_methods-0.3.dist-info"
     dist_info.mkdir()
     (dist_info / "METADATA").write_text("Metadata-Version: 2.1\nName: fake-methods\n"
                                         "Version: 0.3\n")
     (dist_info / "entry_points.txt").write_text(
         f"[{ENTRY_POINT_GROUP}]\nfixed = {HELPERS}:FixedEstimator\n"
-        "broken = no_such_package:Estimator\n")
+        "broken = no_such_package:Estimator\n"
+        f"all = {HELPERS}:FixedEstimator\n")
     monkeypatch.syspath_prepend(str(tmp_path))
 
 
@@ -192,6 +193,9 @@ def test_egostab_methods_lists_every_method_and_where_it_comes_from(installed_en
     assert main(["methods"]) == 0
     out = capsys.readouterr().out
     assert "fixed" in out and "fake-methods 0.3" in out and "t2fuzzy_paper" in out
+    # "all" on the command line is every built-in method, never this entry point.
+    assert "not on the command line, where --methods all means every built-in" in origins["all"]
+    assert build_parser().parse_args(["run", "--methods", "all"]).methods == available_methods()
     assert "Import paths are accepted too" in out
 
 

@@ -43,10 +43,12 @@ def test_identical_methods_give_a_difference_interval_containing_zero():
     assert difference.low < 0 < difference.high and not difference.excludes_zero()
 
 
-def test_all_equal_samples_fall_back_to_the_percentile_interval():
-    interval = mean_interval([0.25] * 12)
+@pytest.mark.parametrize("value", [0.25, 0.025, 1 / 3])
+def test_all_equal_samples_fall_back_to_the_percentile_interval(value):
+    # 0.025 and 1/3: the float mean of equal samples need not equal them.
+    interval = mean_interval([value] * 12)
     assert interval.method == PERCENTILE
-    assert (interval.mean, interval.low, interval.high, interval.n) == (0.25, 0.25, 0.25, 12)
+    assert (interval.mean, interval.low, interval.high, interval.n) == (value, value, value, 12)
     same = paired_difference([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
     assert (same.low, same.high, same.excludes_zero()) == (0.0, 0.0, False)
 
