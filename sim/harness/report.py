@@ -184,8 +184,9 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         "## Failures, time and inter-frame transformation fidelity",
         "",
-        "ITF: mean PSNR between consecutive frames compensated toward the same reference, on "
-        "pixels valid in both; the raw column is the uncompensated stream.",
+        "ITF: mean PSNR between consecutive frames of the stabilized stream toward the same "
+        "reference (a frame the method failed on as measured), on pixels valid in both; the "
+        "raw column is the uncompensated stream.",
         "",
         reliability_table(summary.run),
         "",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -141,6 +142,18 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
         errors = (float(row["err_angle_deg"]), float(row["err_dx_px"]), float(row["err_dy_px"]))
         assert errors == pytest.approx(tuple(abs(v) for v in _offsets(frame)), abs=1e-12)
     assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
+
+
+def test_frames_without_an_estimate_enter_the_itf_uncompensated(folders, tmp_path):
+    # As the stabilized output shows them: a stream of failures alone is the raw stream.
+    failures = tmp_path / "failures.csv"
+    failures.write_text("frame,angle_deg,dx,dy,status\n"
+                        + "".join(f"{frame},0,0,0,lost_track\n" for frame in range(N_FRAMES)))
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "o"),
+                                estimates={"failures": str(failures)}, record=False))
+    figures = metrics["summary"]["run"]["failures"]
+    assert figures["n_failed"] == N_FRAMES
+    assert figures["itf_db"] == figures["itf_raw_db"] and math.isfinite(figures["itf_db"])
 
 
 def test_a_run_ended_by_systemexit_says_error_not_complete(folders, tmp_path, monkeypatch):
