@@ -243,7 +243,9 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
         if missing:
             raise FileValueError(f"{path}:1", "header", f"lacks column(s) {', '.join(missing)}",
                                  f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status")
-        twice = sorted({name for name in header if header.count(name) > 1})
+        # Only the columns read: blank or other names a spreadsheet repeats are ignored.
+        twice = sorted({name for name in header if name in KNOWN_COLUMNS
+                        and header.count(name) > 1})
         if twice:
             raise FileValueError(f"{path}:1", "header", f"names column {twice[0]} twice",
                                  "each column once")

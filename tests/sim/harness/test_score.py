@@ -264,7 +264,7 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
         score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
                           estimates={"mine": str(path)}, record=False))
         scored.append(_rows(out))
-    assert scored[0] == scored[1]
+    assert scored[0] == scored[1] == scored[2]
     assert sum(row["status"] == "ok" for row in scored[1]) == N_FRAMES - 1
 
 
@@ -467,10 +467,15 @@ def test_spreadsheet_rows_of_empty_cells_and_quotes_after_a_space_score_as_meant
                         for line in lines.splitlines())
     path = tmp_path / "exported.csv"
     path.write_text(spaced + "\n,,,,\n,,,,\n")
+    # Blank columns, and other columns named twice, are columns this does not read.
+    header, *rows = lines.splitlines()
+    extra = tmp_path / "extra_columns.csv"
+    extra.write_text("\n".join([header + ",,,note,note", *(row + ",,,a,b" for row in rows)]))
     scored = []
-    for name, estimates in (("plain", tmp_path / "plain.csv"), ("exported", path)):
+    for name, estimates in (("plain", tmp_path / "plain.csv"), ("exported", path),
+                            ("extra", extra)):
         out = tmp_path / name
         assert main(["score", str(folders / "sequence"), "--estimates", f"mine={estimates}",
                      "--out", str(out), "--quiet", "--no-record"]) == 0
         scored.append(_rows(out))
-    assert scored[0] == scored[1]
+    assert scored[0] == scored[1] == scored[2]
