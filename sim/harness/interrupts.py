@@ -153,7 +153,12 @@ def _flush_standard_streams() -> None:
             stream.flush()
 
 
-def user_can_interrupt() -> bool:
-    """Whether a KeyboardInterrupt here may be the user's Ctrl-C: not in a worker process, which
-    ignores SIGINT (``threads.single_thread_pool``), where only code can raise one."""
-    return signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
+def stops_the_job(error: BaseException) -> bool:
+    """Whether an exception caught around a method's code stops the whole job rather than
+    failing a frame: a stop signal's :class:`Interrupted`, or a KeyboardInterrupt where it may be
+    the user's Ctrl-C. Where SIGINT is ignored (a worker process, ``threads.single_thread_pool``;
+    a job started in the background or by a batch system) only code can raise a bare one."""
+    if isinstance(error, Interrupted):
+        return True
+    return (isinstance(error, KeyboardInterrupt)
+            and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN)

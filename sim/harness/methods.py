@@ -33,7 +33,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sim.harness.interrupts import user_can_interrupt
+from sim.harness.interrupts import stops_the_job
 from stabilizer import Stabilizer, available_methods
 from stabilizer.inputs import as_disparity, check_same_shape
 from stabilizer.motion import Motion
@@ -213,7 +213,7 @@ class PluginStabilizer:
             # A plugin's bug (a sys.exit() too, and a KeyboardInterrupt where the user cannot
             # have pressed Ctrl-C) fails its frames, not the run.
             except BaseException as error:
-                if isinstance(error, KeyboardInterrupt) and user_can_interrupt():
+                if stops_the_job(error):
                     raise
                 self._failure = Motion.failed(f"exception:{type(error).__name__}",
                                               message=str(error), stage="reference")

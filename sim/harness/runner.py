@@ -28,7 +28,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, user_can_interrupt
+from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, stops_the_job
 from sim.harness.methods import Estimator, check_methods, method_factory
 from sim.harness.threads import worker_count
 from stabilizer import compensate
@@ -156,7 +156,7 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     # A method's bug, or a plugin's sys.exit() or own BaseException (a KeyboardInterrupt too
     # where the user cannot have pressed Ctrl-C), must not take the other methods' run down.
     except BaseException as error:
-        if isinstance(error, KeyboardInterrupt) and user_can_interrupt():
+        if stops_the_job(error):
             raise
         motion = Motion.failed(f"exception:{type(error).__name__}", message=str(error))
     return motion, 1e3 * (time.perf_counter() - start)

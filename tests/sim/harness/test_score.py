@@ -404,6 +404,23 @@ def test_a_keyboard_interrupt_a_method_raises_in_a_worker_fails_its_frames_not_t
     assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
 
 
+def test_a_stop_signal_during_an_estimate_stops_a_score_started_with_sigint_ignored(
+        folders, tmp_path):
+    # As `&` in a script, nohup-like wrappers and batch systems start a job: SIGINT ignored.
+    # SIGTERM then still stops it; it was taken for the method's own KeyboardInterrupt, which
+    # failed one frame, and the score went on to "complete" with exit status 0.
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN);"
+         " from sim.harness.cli import main; sys.exit(main(sys.argv[1:]))", "score",
+         str(folders / "sequence"), "--methods", f"{PLUGINS}:sends_itself_sigterm",
+         "--workers", "1", "--no-record", "--quiet", "--out", str(out)],
+        cwd=Path(__file__).resolve().parents[3], capture_output=True, text=True, timeout=240)
+    assert (done.returncode, done.stderr) == (130, "egostab score: interrupted by SIGTERM\n")
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted" and metrics["run"]["frames_done"] == 0
+
+
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's overflows on the way
 def test_estimates_near_the_float_range_are_scored_and_plotted(folders, tmp_path):
     # Any finite number is a valid estimate; drawn, it once broke the plots' axis ticks.
