@@ -83,7 +83,10 @@ def checked_overrides(overrides: Any, key: str, varied: tuple[str, ...], fail: F
     if not isinstance(overrides, Mapping):
         raise fail(key, f"got {overrides!r}")
     for dotted, value in overrides.items():
-        if dotted in varied or not is_dotted_key(str(dotted)):
+        # Nor a key within a varied one or holding it: the varied value would replace it.
+        if not is_dotted_key(str(dotted)) or any(
+                f"{dotted}.".startswith(f"{other}.") or f"{other}.".startswith(f"{dotted}.")
+                for other in varied):
             raise fail(key, f"key {dotted!r} is not allowed here ({', '.join(varied)} come "
                             "from the file's lists)")
         if isinstance(value, Mapping):  # it would replace the scenario's whole table

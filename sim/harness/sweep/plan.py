@@ -29,7 +29,7 @@ class SweepRun:
     name: str
     scenario: str
     seed: int
-    noise_level: float
+    noise_level: int | float
     config: RunConfig
 
     @property
@@ -78,7 +78,7 @@ def plan_sweep(spec: SweepSpec, out_dir: str | os.PathLike) -> list[SweepRun]:
     for scenario in spec.scenarios:
         for seed in spec.seeds:
             for level in spec.noise_levels:
-                name = f"{scenario_label(scenario)}__seed{seed}__noise{level!r}"
+                name = f"{scenario_label(scenario)}__seed{seed}__noise{_level_label(level)}"
                 config = RunConfig(
                     scenario=scenario, out_dir=str(Path(out_dir) / RUNS_FOLDER / name),
                     methods=spec.methods, record=spec.record, max_frames=spec.max_frames,
@@ -135,3 +135,9 @@ def split_done(plan: Sequence[SweepRun]) -> tuple[list[RunOutcome], list[SweepRu
         else:
             done.append(RunOutcome(sweep_run, metrics, skipped=True))
     return done, pending
+
+
+def _level_label(level: int | float) -> str:
+    """A level in a run's folder name: as a float (an integer 2 is "2.0", as a 2.0 written in
+    the file), unless the float would round the integer (a scene seed beyond 2**53)."""
+    return repr(float(level)) if float(level) == level else repr(level)

@@ -11,7 +11,8 @@ simulated frames, so methods are not a run dimension). Example
                                               # (relative paths: from the sweep file's folder)
     seeds = [0, 1]                            # integers 0 to 2**63 - 1, distinct
     noise_levels = [0.5, 1.0, 2.0, 4.0]       # numbers, distinct; each is written to noise_key
-    noise_key = "sensor.noise_scale"          # default; any dotted scenario key
+    noise_key = "sensor.noise_scale"          # default; any dotted scenario key taking
+                                              # numbers (integers for scene_seed, say)
     methods = ["t2fuzzy", "sift"]             # default: each scenario's own list; built-in
                                               # names, entry points or package.module:Name
     max_frames = 90                           # default: the scenario's whole duration
@@ -84,7 +85,7 @@ class SweepSpec:
     name: str
     scenarios: tuple[str, ...]
     seeds: tuple[int, ...]
-    noise_levels: tuple[float, ...]
+    noise_levels: tuple[int | float, ...]
     noise_key: str = DEFAULT_NOISE_KEY
     methods: tuple[str, ...] | None = None
     max_frames: int | None = None
@@ -125,8 +126,9 @@ def sweep_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
     scenarios = distinct_list(raw["scenarios"], "scenarios", fail,
                               lambda v: isinstance(v, str) and bool(v.strip()))
     seeds = distinct_list(raw["seeds"], "seeds", fail, is_seed)
-    noise_levels = tuple(float(v) for v in distinct_list(
-        raw["noise_levels"], "noise_levels", fail, is_finite_number))
+    # As written: an integer key (scene_seed, recording.frame_stride) takes integers.
+    noise_levels = tuple(distinct_list(raw["noise_levels"], "noise_levels", fail,
+                                       is_finite_number))
     methods = raw.get("methods")
     if methods is not None:
         methods = distinct_list(methods, "methods", fail, lambda v: isinstance(v, str))

@@ -117,6 +117,17 @@ def test_expansion_applies_the_noise_key_and_shared_overrides(tmp_path):
                              {"evaluation.reference": "previous", "sensor.fps": 20.0}]
 
 
+def test_integer_keys_are_swept_with_the_integers_written(tmp_path):
+    spec = small_spec(noise_key="scene_seed", noise_levels=[2, 9007199254740993],
+                      scenarios=["corridor_straight"], seeds=[0])
+    configs = expand_sweep(spec, tmp_path)
+    assert [config.overrides["scene_seed"] for config in configs] == [2, 9007199254740993]
+    assert all(type(config.overrides["scene_seed"]) is int for config in configs)
+    # Named as before for a level a float holds; a larger integer is named exactly.
+    assert [Path(config.out_dir).name for config in configs] == [
+        "corridor_straight__seed0__noise2.0", "corridor_straight__seed0__noise9007199254740993"]
+
+
 def test_example_sweep_file_loads():
     spec = load_sweep(EXAMPLE_SWEEP)
     assert spec.name == "noise_sweep" and spec.noise_key == DEFAULT_NOISE_KEY
@@ -163,6 +174,10 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"name": "a/b"}, "name", "letters, digits"),
     ({"overrides": {"seed": 3}}, "overrides", "not seed"),
     ({"overrides": {"sensor.noise_scale": 3}}, "overrides", "not the noise key"),
+    # Within the noise key, or holding it: the level would replace it unseen.
+    ({"overrides": {"sensor.noise_scale.x": 1}}, "overrides", "not the noise key"),
+    ({"overrides": {"seed.x": 1}}, "overrides", "not seed"),
+    ({"overrides": {"sensor": 1}}, "overrides", "not the noise key"),
     ({"overrides": {"sensor.fsp": 3}}, "overrides", "every scenario"),
     ({"overrides": []}, "overrides", "a table"),
     ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
