@@ -354,7 +354,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="folder for the gate's runs (default: results/gate)")
     gate.set_defaults(handler=_cmd_gate)
 
-    sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise x methods")
+    sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise "
+                                              "levels, every method on each run")
     sweep.add_argument("sweep_file", type=Path)
     sweep.add_argument("--out", type=path_option, default=None,
                        help="sweep folder (default: results/sweeps/<name>; resumable: complete "

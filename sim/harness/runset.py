@@ -25,7 +25,9 @@ def read_runset_file(path: str | os.PathLike, error: type[FileValueError], kind:
     """The tables of a ``kind`` file ("sweep", "suite"), named after the file unless it says."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"no {kind} file {path}; accepted: a {kind} TOML file (see "
+        problem = (f"{path} is a folder, not a {kind} file" if path.is_dir() else
+                   f"{path} is not a regular file" if path.exists() else f"no {kind} file {path}")
+        raise FileNotFoundError(f"{problem}; accepted: a {kind} TOML file (see "
                                 f"scenarios/{kind}s/)")
     raw = read_toml(path, error)
     raw.setdefault("name", safe_name(path.stem))

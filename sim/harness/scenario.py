@@ -504,15 +504,23 @@ def _set_dotted(raw: dict, dotted: str, value, source: str) -> None:
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A scenario file from a path, or from the name of a shipped one."""
-    path = Path(name_or_path)
+    text = str(name_or_path)
+    path = Path(text)
     accepted = "a scenario TOML file, or the name of a shipped one (egostab list)"
-    shipped = SCENARIOS_DIR / f"{name_or_path}.toml"
+    if not text:
+        raise FileNotFoundError(f"no scenario ''; accepted: {accepted}")
+    # A name is a file name alone: "ci/ci_corridor" or "../pyproject" is a path, not a name.
+    shipped = (SCENARIOS_DIR / f"{text}.toml" if path.name == text and text not in (".", "..")
+               else None)
     # A folder does not hide a shipped scenario of its name: `egostab run corridor_straight
     # --out corridor_straight` makes that folder before the run reads its scenario.
-    if path.suffix == ".toml" or path.is_file() or (path.exists() and not shipped.is_file()):
+    if (shipped is None or path.suffix == ".toml" or path.is_file()
+            or (path.exists() and not shipped.is_file())):
         if path.is_dir():
             raise FileNotFoundError(f"{path} is a folder, not a scenario file; accepted: "
                                     f"{accepted}")
+        if path.exists() and not path.is_file():
+            raise FileNotFoundError(f"{path} is not a regular file; accepted: {accepted}")
         if not path.is_file():
             raise FileNotFoundError(f"no scenario file {path}; accepted: {accepted}")
         return path

@@ -227,6 +227,22 @@ def test_a_folder_does_not_hide_a_shipped_scenario_of_its_name(tmp_path, monkeyp
         resolve_scenario_path("not_shipped")
 
 
+@pytest.mark.parametrize("given, problem", [
+    ("", "no scenario ''"),
+    ("/dev/null", "/dev/null is not a regular file"),
+    # Paths, not names: the shipped folder is not searched for them.
+    ("ci/ci_corridor", "no scenario file ci/ci_corridor"),
+    ("../pyproject", "no scenario file ../pyproject"),
+    (str(SCENARIOS_DIR / "ci" / "ci_corridor"), "no scenario file"),
+])
+def test_a_scenario_that_is_no_file_or_name_is_named_as_given(given, problem, monkeypatch):
+    monkeypatch.chdir(SCENARIOS_DIR)
+    with pytest.raises(FileNotFoundError) as error:
+        resolve_scenario_path(given)
+    assert str(error.value).startswith(problem) and "accepted: a scenario TOML file" in str(
+        error.value)
+
+
 def test_scenario_errors_survive_pickling(tmp_path):
     """Runs go through process pools: their errors must pickle."""
     with pytest.raises(ScenarioError) as error:

@@ -200,6 +200,8 @@ def test_missing_required_key_and_bad_toml_are_named(tmp_path):
         load_sweep(broken)
     with pytest.raises(FileNotFoundError, match="no sweep file"):
         load_sweep(tmp_path / "absent.toml")
+    with pytest.raises(FileNotFoundError, match="is a folder, not a sweep file"):
+        load_sweep(tmp_path)
 
 
 def test_two_scenario_files_with_one_name_are_refused(tmp_path):
