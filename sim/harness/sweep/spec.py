@@ -153,7 +153,20 @@ def _check_runs_load(spec: SweepSpec) -> None:
             except ScenarioError as error:
                 key = (f"noise_levels[{index}]" if error.key == spec.noise_key
                        else "overrides" if error.key in spec.overrides
+                       or (spec.overrides and _loads(scenario, {spec.noise_key: level}))
                        else f"scenarios[{spec.scenarios.index(scenario)}]")
+                values = ", ".join(f"{name} = {value!r}" for name, value in
+                                   {**spec.overrides, spec.noise_key: level}.items())
                 raise SweepError(spec.source, key, f"scenario {scenario_label(scenario)} with "
-                                 f"{spec.noise_key} = {level!r} is refused ({error})",
+                                 f"{values} is refused ({error})",
                                  "values every scenario of the sweep accepts") from None
+
+
+def _loads(scenario: str, overrides: dict) -> bool:
+    """Whether ``scenario`` loads with ``overrides``: a refusal that goes away without the
+    sweep's shared overrides is theirs (a shorter duration_s than the scenario's last push)."""
+    try:
+        load_scenario(scenario, overrides)
+    except ScenarioError:
+        return False
+    return True

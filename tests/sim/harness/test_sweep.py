@@ -179,6 +179,9 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"overrides": {"seed.x": 1}}, "overrides", "not seed"),
     ({"overrides": {"sensor": 1}}, "overrides", "not the noise key"),
     ({"overrides": {"sensor.fsp": 3}}, "overrides", "every scenario"),
+    # Refused by another key of the scenario, but only with the override: the override's fault.
+    ({"overrides": {"duration_s": 1.0}, "scenarios": ["push_recovery"]}, "overrides",
+     "every scenario"),
     ({"overrides": []}, "overrides", "a table"),
     ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
 ])
