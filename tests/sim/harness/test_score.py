@@ -264,7 +264,7 @@ def test_estimates_saved_by_a_spreadsheet_score_as_written(folders, tmp_path):
         score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
                           estimates={"mine": str(path)}, record=False))
         scored.append(_rows(out))
-    assert scored[0] == scored[1] == scored[2]
+    assert scored[0] == scored[1]
     assert sum(row["status"] == "ok" for row in scored[1]) == N_FRAMES - 1
 
 
