@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from sim.harness.methods import method_factory
+from sim.harness.sequence import decode_image
 from stabilizer import apply_motion, available_methods, depth_to_disparity
 from stabilizer.motion import Motion
 
@@ -152,7 +153,10 @@ def load_image(image: str, scene_seed: int = 0, resize: bool = False) -> np.ndar
             raise ValueError(f"{image}: need a 2-D array of depths in metres; got "
                              f"{depth.dtype} with shape {depth.shape}")
         return _within_size_limit(depth_to_disparity(depth.astype(np.float64)), image, resize)
-    pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        pixels = decode_image(path.read_bytes())
+    except OSError:
+        pixels = None
     if pixels is None or pixels.ndim != 2 or pixels.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"{image}: need a single-channel 8-bit (disparity) or 16-bit "
                          f"(depth in mm) PNG; got "

@@ -309,8 +309,6 @@ class LoadedSequence:
                              self.encoded(index, exact), self.header["depth_unit_m"])
 
     def _read_png(self, folder: str, index: int) -> np.ndarray:
-        import cv2
-
         path = self.path / folder / frame_file(index)
         try:
             data = path.read_bytes()
@@ -318,8 +316,7 @@ class LoadedSequence:
             data = b""
         # A cut-off file (an interrupted copy, a full disk) lacks the closing IEND chunk: it is
         # refused here, before libpng would print a line of its own beside the refusal.
-        image = (cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-                 if data.endswith(PNG_END) else None)
+        image = decode_image(data) if data.endswith(PNG_END) else None
         expected = (self.intrinsics.height, self.intrinsics.width)
         if image is None:
             raise FileValueError(str(path), "image", "missing or not a readable PNG",
@@ -487,3 +484,17 @@ def load_sequence(path: str | Path) -> LoadedSequence:
                                      "is missing", f"one PNG per frame in {sub}/ "
                                      f"(frames 0 to {n_frames - 1})")
     return LoadedSequence(folder, header, scenario, intrinsics, rows, fall)
+
+
+def decode_image(data: bytes) -> np.ndarray | None:
+    """An encoded image (PNG or another format OpenCV reads) as stored, or None when it cannot
+    be decoded; OpenCV's own log line about a broken file is held back, so that the caller's
+    refusal is the only line."""
+    import cv2
+
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    finally:
+        cv2.utils.logging.setLogLevel(level)

@@ -82,3 +82,15 @@ def test_disparity_png_round_trip_is_exact(tmp_path):
     image = depth_to_disparity(make_depth_scene(3))
     cv2.imwrite(str(tmp_path / "d.png"), image)
     assert np.array_equal(load_image(str(tmp_path / "d.png")), image)
+
+
+@pytest.mark.parametrize("data", [b"\x89PNG\r\n\x1a\nnot a header", b"not an image at all"])
+def test_an_unreadable_image_is_refused_in_one_line(tmp_path, capfd, data):
+    from sim.harness.cli import main
+
+    path = tmp_path / "broken.png"
+    path.write_bytes(data)
+    assert main(["ideal", str(path), "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    # Read at the file descriptor: OpenCV logs a broken PNG header there, not to sys.stderr.
+    err = capfd.readouterr().err.strip()
+    assert "broken.png" in err and "an unreadable file" in err and "\n" not in err, err
