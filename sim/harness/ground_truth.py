@@ -150,7 +150,8 @@ class GroundTruth:
         """
         height, width = int(shape[0]), int(shape[1])
         source = np.asarray(source_px, dtype=np.float32).reshape(-1, 2)
-        target = transform_points(motion, source, shape).astype(np.float32)
+        with np.errstate(over="ignore"):  # a motion far out of view: inf, dropped below
+            target = transform_points(motion, source, shape).astype(np.float32)
         inside = ((target[:, 0] >= -0.5) & (target[:, 0] < width - 0.5)
                   & (target[:, 1] >= -0.5) & (target[:, 1] < height - 0.5))
         n_points = int(np.count_nonzero(inside))

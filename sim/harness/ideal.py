@@ -95,10 +95,12 @@ def trajectory_from_run(frames_csv: str | Path) -> list[Motion]:
                 try:
                     index = int(row["frame_index"])
                     values = [float(row[name]) for name in columns[2:]]
+                    if not all(map(math.isfinite, values)):
+                        raise ValueError("a truth that is not finite")
                 except (TypeError, ValueError):
                     raise FileValueError(f"{frames_csv}:{line}", "row", "holds a value that is "
-                                         "not a number", "the frames.csv of a walking run"
-                                         ) from None
+                                         "not a finite number", "the frames.csv of a walking "
+                                         "run") from None
                 motions.setdefault(index, Motion(*values))
     except (UnicodeDecodeError, csv.Error) as error:
         raise FileValueError(str(frames_csv), "content", f"is not a CSV table ({error})",

@@ -74,6 +74,15 @@ def test_frames_csv_without_truth_is_rejected(tmp_path):
         trajectory_from_run(path)
 
 
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+def test_a_truth_that_is_not_finite_is_refused_by_line(tmp_path, value):
+    path = tmp_path / "frames.csv"
+    path.write_text("frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px\n"
+                    f"0,ok,0,0,0\n1,ok,0,{value},0\n")
+    with pytest.raises(FileValueError, match="frames.csv:3: row: .*not a finite number"):
+        trajectory_from_run(path)
+
+
 def test_disparity_png_round_trip_is_exact(tmp_path):
     import cv2
 
