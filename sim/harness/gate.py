@@ -20,6 +20,7 @@ from pathlib import Path
 
 from scenarios import SCENARIOS_DIR
 from sim.harness.atomic import prepare_output_dir, write_text_atomic
+from sim.harness.interrupts import Interrupted
 
 #: The CI scenario set: short walks (a few seconds each), run by ``egostab gate``.
 CI_SCENARIOS_DIR = SCENARIOS_DIR / "ci"
@@ -47,6 +48,8 @@ def gate_metrics(metrics: dict, rows: list[dict]) -> dict[str, dict[str, float]]
     and the rows of its frames.csv."""
     from stabilizer.motion import OK, wrap_angle_deg
 
+    if metrics["status"] == "interrupted":  # the gate was stopped: a stop, not bad input
+        raise Interrupted.named_in(metrics["run"].get("message", ""))
     if metrics["status"] != "complete":
         raise ValueError(f"run {metrics['scenario'].get('name')} did not complete: "
                          f"{metrics['status']} ({metrics['run'].get('message', '')})")

@@ -33,6 +33,12 @@ class Interrupted(KeyboardInterrupt):
         super().__init__(signal_name)
         self.signal_name = signal_name
 
+    @staticmethod
+    def named_in(message: str) -> KeyboardInterrupt:
+        """The stop a run's message names ("interrupted by SIGTERM"), or Ctrl-C's."""
+        name = message.removeprefix("interrupted by ")
+        return Interrupted(name) if name in STOP_SIGNAL_NAMES else KeyboardInterrupt()
+
 
 #: The names of the stop signals received within :func:`stop_signals_interrupt`, in order.
 _received: list[str] = []

@@ -116,6 +116,16 @@ def test_an_incomplete_run_cannot_be_gated():
         gate.gate_metrics(metrics, [])
 
 
+@pytest.mark.parametrize("message, signal_name", [
+    ("interrupted by SIGTERM", "SIGTERM"), ("interrupted by the user (Ctrl-C)", None)])
+def test_a_stopped_run_stops_the_gate_as_a_stop_not_as_bad_input(message, signal_name):
+    metrics = {"status": "interrupted", "scenario": {"name": "ci_a"},
+               "run": {"message": message}, "summary": {"run": {}}}
+    with pytest.raises(KeyboardInterrupt) as stop:  # the CLI: one line, exit status 130
+        gate.gate_metrics(metrics, [])
+    assert getattr(stop.value, "signal_name", None) == signal_name
+
+
 def test_the_figures_of_a_run_come_from_its_metrics_and_frames():
     def row(frame, status, est, true, truth_status="ok"):
         return {"frame_index": str(frame), "method": "ecc", "status": status,
