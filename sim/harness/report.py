@@ -515,10 +515,18 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
 def _compact_table(runs: list[Path]) -> str:
     cells: dict[str, dict[str, str]] = {}
     methods: list[str] = []
-    for run in runs:
-        label = run.name if run.is_dir() else run.parent.name
+    folders = [(run if run.is_dir() else run.parent) for run in runs]
+    names = [folder.resolve().name for folder in folders]  # "." has a name too
+    for run, folder, name in zip(runs, folders, names):
+        document = read_metrics(run)
+        # Two runs of one name (results/a/x, results/b/x) are told apart by their paths.
+        label = str(folder) if names.count(name) > 1 else name
+        if document["status"] != "complete":  # an unfinished run does not pass for a whole one
+            label += f" ({document['status']})"
+        if label in cells:
+            raise ValueError(f"run folder {folder} given twice; accepted: each run once")
         cells[label] = {}
-        for score in score_rows(read_metrics(run)):
+        for score in score_rows(document):
             if score["method"] not in methods:
                 methods.append(score["method"])
             cells[label][score["method"]] = (

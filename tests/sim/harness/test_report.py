@@ -183,6 +183,19 @@ def test_the_compact_table_has_a_column_per_method_and_the_readme_cell_layout(ru
     assert row.split(" | ")[1] == expected
 
 
+def test_the_compact_table_keeps_runs_of_one_name_apart_and_says_which_did_not_finish(
+        run, tmp_path):
+    run_dir, _, records, _ = run
+    for folder, status in (("a", "complete"), ("b", "interrupted")):
+        write_run_outputs(tmp_path / folder / "walk", scenario={}, records=records[:20],
+                          summary=summarize(records[:20]), meta={}, status=status, plots=False)
+    first, second = tmp_path / "a" / "walk", tmp_path / "b" / "walk"
+    rows = aggregate_runs([first, second], compact=True).splitlines()[2:]
+    assert [row.split(" | ")[0] for row in rows] == [f"| {first}", f"| {second} (interrupted)"]
+    with pytest.raises(ValueError, match="given twice"):
+        aggregate_runs([first, first], compact=True)
+
+
 def test_score_rows_read_each_methods_figures_back_from_metrics(run, tmp_path):
     _, files, records, summary = run
     rows = score_rows(files.metrics)
