@@ -212,13 +212,28 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
     summary = RunSummary.from_dict(metrics["summary"])
     lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
              "", epe_table(summary.run), "", reliability_table(summary.run)]
-    if run_dir is not None:
+    kept = _run_on_disk(run_dir) if run_dir is not None else None
+    if kept is not None and kept.get("run", {}).get("wall_time_s") != metrics.get(
+            "run", {}).get("wall_time_s"):
+        # A stopped run over a finished one is dropped, and the finished one stays.
+        lines += ["", f"Not kept: {Path(run_dir)}/ holds the previous run ({kept.get('status')}),"
+                      f" as it was."]
+    elif run_dir is not None:
         listed = metrics.get("files", {})
         names = [(what, name) for what, name in listed.items() if what != "plots"]
         names += [("plot", name) for name in listed.get("plots", ())]
         lines += ["", f"Results in {Path(run_dir)}/:"]
         lines += [f"  {name:<28} {what}" for what, name in names]
     return "\n".join(lines)
+
+
+def _run_on_disk(run_dir: str | Path) -> dict | None:
+    """The metrics.json in ``run_dir`` as a dict, or None when there is no readable one."""
+    try:
+        document = json.loads((Path(run_dir) / METRICS_JSON).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return document if isinstance(document, dict) else None
 
 
 # ----------------------------------------------------------------------------- files

@@ -158,6 +158,20 @@ def test_rewriting_replaces_files_and_keeps_the_new_status(run, tmp_path):
                                                           "summary.md"]
 
 
+def test_terminal_summary_of_a_stopped_run_over_a_finished_one_says_it_was_not_kept(run,
+                                                                                     tmp_path):
+    _, _, records, summary = run
+    finished = write_run_outputs(tmp_path, scenario={}, records=records, summary=summary,
+                                 meta={"wall_time_s": 1.5}, status="complete", plots=False)
+    # The stopped run's own metrics, which the runner dropped (docs/design.md).
+    stopped = {**finished.metrics, "status": "interrupted",
+               "run": {**finished.metrics["run"], "wall_time_s": 0.4}}
+    text = terminal_summary(stopped, tmp_path)
+    assert f"Not kept: {tmp_path}/ holds the previous run (complete), as it was." in text
+    assert "Results in" not in text
+    assert "Results in" in terminal_summary(finished.metrics, tmp_path)
+
+
 def test_aggregate_runs_makes_one_table(run, tmp_path):
     run_dir, _, records, _ = run
     other = tmp_path / "run_b"
