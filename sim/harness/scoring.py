@@ -299,11 +299,12 @@ def masked_psnr_db(first: np.ndarray, second: np.ndarray, peak: float = 255.0,
 class ItfAccumulator:
     """Incremental inter-frame transformation fidelity: mean PSNR of consecutive frames.
 
-    Feed each stream (a method's compensated frames, and the raw frames as ``RAW_STREAM``) one
-    frame at a time in frame order. A pair counts only when both frames were compensated
-    toward the same reference frame: across a reference change the two frames are aligned to
-    different images by design (so with the previous-frame reference policy no pair counts
-    and the ITF is NaN). A pair belongs to the gait cycle of its second frame.
+    Feed each stream (a method's output frames: compensated, or as measured where it failed;
+    and the raw frames as ``RAW_STREAM``) one frame at a time in frame order. A pair counts
+    only when both frames belong to the same reference frame: across a reference change the
+    two frames are aligned to different images by design (so with the previous-frame
+    reference policy only the first pair counts, frame 0 being its own reference and frame
+    1's). A pair belongs to the gait cycle of its second frame.
 
     Args:
         peak: largest pixel value (255 for the uint8 disparity-like images).
