@@ -35,6 +35,7 @@ import colorsys
 import json
 import math
 import os
+import zlib
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
@@ -72,6 +73,19 @@ METHOD_COLOURS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40),
                   (148, 103, 189), (140, 86, 75), (227, 119, 194), (127, 127, 127),
                   (188, 189, 34), (23, 190, 207))
 MILLIMETRES_PER_METRE = 1000.0
+
+
+def method_colour(method: str) -> tuple[int, int, int]:
+    """A method's colour in every recording, whatever the other methods of the run: a built-in
+    method's by its place in ``stabilizer.available_methods()``, any other's from a checksum of
+    its name among the colours left."""
+    from stabilizer import available_methods
+
+    built_in = available_methods()
+    if method in built_in:
+        return METHOD_COLOURS[built_in.index(method)]
+    others = METHOD_COLOURS[len(built_in):]
+    return others[zlib.crc32(method.encode("utf-8")) % len(others)]
 #: The depth point cloud keeps every n-th pixel in x and y (file size: docs/recording.md).
 POINT_CLOUD_STRIDE = 3
 POINT_CLOUD_RADIUS_M = 0.015
@@ -416,8 +430,8 @@ class RunRecorder:
             stream.log(f"series/{axis}/truth",
                        rr.SeriesLines(colors=[TRUTH_COLOUR], names=["truth"], widths=[2.0]),
                        static=True)
-            for index, method in enumerate(self.methods):
-                colour = METHOD_COLOURS[index % len(METHOD_COLOURS)]
+            for method in self.methods:
+                colour = method_colour(method)
                 for root in ("series", "errors"):
                     stream.log(f"{root}/{axis}/{method}",
                                rr.SeriesLines(colors=[colour], names=[method]), static=True)

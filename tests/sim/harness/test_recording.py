@@ -421,3 +421,15 @@ def test_a_heightfield_is_drawn_where_mujoco_has_its_surface():
         distance = mujoco.mj_ray(model, data, np.array([vertex[0], vertex[1], 5.0]),
                                  np.array([0.0, 0.0, -1.0]), None, 1, -1, hit)
         assert abs(5.0 - distance - vertex[2]) < 1e-9
+
+
+def test_a_method_has_one_colour_in_every_recording():
+    from sim.harness.recording import METHOD_COLOURS, method_colour
+    from stabilizer import available_methods
+
+    built_in = [method_colour(method) for method in available_methods()]
+    assert len(set(built_in)) == len(built_in)
+    # Not by its place in a run's list: icp is icp's colour beside t2fuzzy alone, too.
+    assert method_colour("icp") == METHOD_COLOURS[available_methods().index("icp")]
+    plugin = method_colour("my_package.module:Mine")
+    assert plugin == method_colour("my_package.module:Mine") and plugin not in built_in
