@@ -481,6 +481,22 @@ def _finished_run(run_dir: Path) -> bool:
         return False
 
 
+def _listed_files(run_dir: Path) -> set[str]:
+    """The names of the files the run in ``run_dir`` lists in its metrics.json as its own."""
+    from sim.harness.report import read_metrics
+
+    try:
+        listed = read_metrics(run_dir).get("files") or {}
+    except ValueError:
+        return set()
+    names = set()
+    for value in listed.values():
+        for name in ([value] if isinstance(value, str) else value):
+            if isinstance(name, str) and Path(name).name == name:  # a file of the folder only
+                names.add(name)
+    return names
+
+
 class Scoring:
     """What a run (or a score of a sequence) has done so far, and its run folder.
 
@@ -612,10 +628,17 @@ class Scoring:
 
         staged = self.out_dir / METRICS_JSON
         if self.status in (COMPLETE, FELL) and staged.is_file():
+            previous = _listed_files(self.final_dir)
+            written = set()
             for path in sorted(self.out_dir.iterdir()):
                 if path.is_file() and path.name != METRICS_JSON:
                     os.replace(path, self.final_dir / path.name)
+                    written.add(path.name)
             os.replace(staged, self.final_dir / METRICS_JSON)
+            # The previous run's own files that this one did not write (its recording, the
+            # plots of methods no longer run) would pass for this run's; other files stay.
+            for name in previous - written - {METRICS_JSON}:
+                (self.final_dir / name).unlink(missing_ok=True)
         shutil.rmtree(self.out_dir, ignore_errors=True)
 
 

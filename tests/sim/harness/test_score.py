@@ -211,6 +211,21 @@ def test_an_interrupted_run_over_a_finished_one_leaves_it_as_it_was(folders, tmp
     assert not (out / STAGING_FOLDER).exists()
 
 
+def test_a_finished_run_over_a_finished_one_leaves_none_of_the_old_runs_files(folders,
+                                                                             tmp_path):
+    out = tmp_path / "out"
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                      methods=("ecc", "sift"), record=False, workers=1))
+    (out / "notes.txt").write_text("mine")  # a file of the user's
+    assert (out / "estimates_sift.png").is_file()
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out), methods=("ecc",),
+                      record=False, workers=1))
+    # sift's old plot does not pass for the new run's; the user's file stays.
+    assert sorted(path.name for path in out.iterdir()) == [
+        "error_histograms.png", "estimates_ecc.png", "frames.csv", "metrics.json", "notes.txt",
+        "summary.md"]
+
+
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())
