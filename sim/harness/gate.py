@@ -139,8 +139,10 @@ def verdict(entry: str, metric: str, baseline: float, current: float) -> str:
         return WITHIN
     if entry == TRUTH:
         return MOVED
-    worse = abs(current) > abs(baseline) if "_bias_" in metric else current > baseline
-    return WORSE if worse else BETTER
+    if "_bias_" in metric:  # a bias that only changed sign is no nearer 0
+        return (WORSE if abs(current) > abs(baseline) else
+                BETTER if abs(current) < abs(baseline) else MOVED)
+    return WORSE if current > baseline else BETTER
 
 
 def compare(current: dict, baseline: dict) -> list[dict]:
@@ -291,8 +293,11 @@ def run_gate(baseline_path: Path, update: bool = False,
     print(format_rows(rows))
     if moved:
         worse = sum(row["verdict"].startswith("REGRESSED") for row in moved)
+        better = sum(row["verdict"] == BETTER for row in moved)
         print(f"\ngate failed: {len(moved)} figure(s) moved from {baseline_path} beyond their "
-              f"tolerance ({worse} worse, {len(moved) - worse} better or of the ground truth); "
+              f"tolerance ({worse} worse, {better} better, {len(moved) - worse - better} "
+              f"changed without a better way: the ground truth, a bias's sign, a figure without "
+              f"a baseline value); "
               "a change that moves results on purpose rewrites the baseline in the same commit "
               "(egostab gate --update-baseline):")
         print(format_rows(moved))

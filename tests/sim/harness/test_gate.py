@@ -53,6 +53,10 @@ def test_a_bias_that_crosses_zero_is_judged_by_its_size():
     assert _verdicts(_with(x_bias_px=0.12))[("t2fuzzy", "x_bias_px")] == gate.BETTER
 
 
+def test_a_bias_that_only_changed_sign_is_a_change_not_an_improvement():
+    assert _verdicts(_with(x_bias_px=-0.20))[("t2fuzzy", "x_bias_px")] == gate.MOVED
+
+
 def test_a_moved_ground_truth_fails_without_a_direction():
     for metric in ("dy_mean_px", "failed_frames"):
         moved = TRUTH_FIGURES[metric] + 3 * gate.TRUTH_TOLERANCES[metric]
