@@ -34,6 +34,10 @@ DEFAULT_RESULTS = Path("results")
 DEFAULT_SEQUENCES = Path("sequences")
 
 
+#: The most frames of the ideal experiment's cycle (each held in memory: 25 kB at 176 x 144).
+MAX_IDEAL_FRAMES = 10_000
+
+
 def _methods(text: str) -> tuple[str, ...]:
     """The methods of ``--methods``, each resolved now so a bad one is refused up front."""
     from sim.harness.methods import ACCEPTED_FORMS, MethodError, method_factory
@@ -61,7 +65,13 @@ def _method_list(text: str) -> tuple[str, ...]:
 
     # As _methods reads a list: " all" and "all," are "all" too.
     names = [name.strip() for name in text.split(",") if name.strip()]
-    return available_methods() if names == [ALL_BUILT_INS] else _methods(text)
+    if names == [ALL_BUILT_INS]:
+        return available_methods()
+    if ALL_BUILT_INS in names:  # not an entry point of that name either: `egostab methods`
+        raise argparse.ArgumentTypeError(f"{ALL_BUILT_INS!r} among other methods; accepted: "
+                                         f"{ALL_BUILT_INS!r} alone (every built-in method), or "
+                                         f"a list of methods")
+    return _methods(text)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -307,8 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     ideal.add_argument("--trajectory", default="paper_cycle",
                        help="'paper_cycle' (default: one gait cycle of the paper's magnitudes) "
                             "or a frames.csv of a walking run (its ground truth is replayed)")
-    ideal.add_argument("--frames", type=integer_option(2), default=30,
-                       help="frames per cycle (default 30)")
+    ideal.add_argument("--frames", type=integer_option(2, MAX_IDEAL_FRAMES), default=30,
+                       help=f"frames per cycle (default 30, at most {MAX_IDEAL_FRAMES:,})")
     ideal.add_argument("--methods", type=_method_list, default=None,
                        help="comma-separated methods (built-in, entry point or "
                             "package.module:Name; see `egostab methods`), or 'all' (default: "

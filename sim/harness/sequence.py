@@ -496,5 +496,7 @@ def decode_image(data: bytes) -> np.ndarray | None:
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     try:
         return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error:  # a header claiming more than OpenCV decodes (2**30 pixels)
+        return None
     finally:
         cv2.utils.logging.setLogLevel(level)

@@ -188,7 +188,7 @@ def test_a_bad_count_is_refused(command, option, count, capsys):
 @pytest.mark.parametrize("arguments, accepted", [
     (["run", "--seed", "-1"], "an integer from 0 to 9223372036854775807"),
     (["record", "--seed", str(2**63)], "an integer from 0 to 9223372036854775807"),
-    (["ideal", "corridor", "--frames", "1"], "an integer >= 2"),
+    (["ideal", "corridor", "--frames", "1"], "an integer from 2 to 10000"),
 ])
 def test_a_bad_option_value_is_refused_by_the_option(arguments, accepted, capsys):
     with pytest.raises(SystemExit) as exit_info:

@@ -103,3 +103,34 @@ def test_an_unreadable_image_is_refused_in_one_line(tmp_path, capfd, data):
     # Read at the file descriptor: OpenCV logs a broken PNG header there, not to sys.stderr.
     err = capfd.readouterr().err.strip()
     assert "broken.png" in err and "an unreadable file" in err and "\n" not in err, err
+
+
+def test_an_image_larger_than_opencv_decodes_is_refused_in_one_line(tmp_path, capfd):
+    import zlib
+
+    from sim.harness.cli import main
+
+    def chunk(kind, data):
+        body = kind + data
+        return len(data).to_bytes(4, "big") + body + zlib.crc32(body).to_bytes(4, "big")
+
+    # A valid 40000 x 40000 grey PNG header over almost no data (1.6e9 pixels claimed).
+    header = (40000).to_bytes(4, "big") * 2 + bytes([8, 0, 0, 0, 0])
+    path = tmp_path / "huge.png"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+                     + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
+    assert main(["ideal", str(path), "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert "huge.png" in err and "\n" not in err, err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--frames", "1000000000000"], "an integer from 2 to 10000"),
+    (["--methods", "all,ecc"], "'all' alone"),
+])
+def test_ideal_options_out_of_range_are_refused(tmp_path, capsys, argv, words):
+    from sim.harness.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["ideal", "corridor", *argv, "--out", str(tmp_path / "out")])
+    assert exit_info.value.code == 2 and words in capsys.readouterr().err
