@@ -54,6 +54,7 @@ from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
 from sim.harness.ground_truth import GroundTruth, pixel_rays
 from sim.harness.provenance import provenance
 from sim.harness.scoring import AXES, AXIS_UNITS
+from stabilizer import available_methods
 from stabilizer.motion import Motion
 
 APPLICATION_ID = "egostab"
@@ -79,8 +80,6 @@ def method_colour(method: str) -> tuple[int, int, int]:
     """A method's colour in every recording, whatever the other methods of the run: a built-in
     method's by its place in ``stabilizer.available_methods()``, any other's from a checksum of
     its name among the colours left."""
-    from stabilizer import available_methods
-
     built_in = available_methods()
     if method in built_in:
         return METHOD_COLOURS[built_in.index(method)]

@@ -228,12 +228,11 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
 
 
 def _run_on_disk(run_dir: str | Path) -> dict | None:
-    """The metrics.json in ``run_dir`` as a dict, or None when there is no readable one."""
+    """The metrics.json in ``run_dir`` (:func:`read_metrics`), or None when there is none."""
     try:
-        document = json.loads((Path(run_dir) / METRICS_JSON).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        return read_metrics(Path(run_dir))
+    except ValueError:
         return None
-    return document if isinstance(document, dict) else None
 
 
 # ----------------------------------------------------------------------------- files
