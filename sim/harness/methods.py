@@ -25,6 +25,7 @@ import importlib.metadata
 import inspect
 import math
 import numbers
+import os
 import re
 import warnings
 from collections.abc import Callable, Iterator
@@ -233,11 +234,17 @@ class PluginStabilizer:
 
 @contextlib.contextmanager
 def _as_it_was() -> Iterator[None]:
-    """numpy's floating-point error settings and the warning filters restored after the block:
-    a plugin that sets them (``np.seterr(all="raise")``, ``warnings.simplefilter("error")``)
-    changes them for itself, not for the other methods and the scoring."""
-    with np.errstate(), warnings.catch_warnings():
-        yield
+    """numpy's floating-point error settings, the warning filters and the working directory
+    restored after the block: a plugin that sets them (``np.seterr(all="raise")``,
+    ``warnings.simplefilter("error")``, ``os.chdir``) changes them for itself, not for the
+    other methods and the scoring (whose output paths may be relative)."""
+    cwd = os.getcwd()
+    try:
+        with np.errstate(), warnings.catch_warnings():
+            yield
+    finally:
+        if os.getcwd() != cwd:
+            os.chdir(cwd)
 
 
 def _read_only_copy(image: np.ndarray) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""A run's outputs: frames.csv, metrics.json, summary.md (the paper's Table I layout), plots.
+"""A run's outputs: frames.csv, failures.jsonl, metrics.json, summary.md (the paper's Table I
+layout), plots.
 
 Every file is written atomically (sim/harness/atomic.py), so a run that ends early (a fall,
 Ctrl-C) leaves complete files; metrics.json is written last and says how the run ended. The same
@@ -35,6 +36,7 @@ from sim.harness.provenance import provenance
 from sim.harness.scoring import AXES, AXIS_UNITS, RECORD_FIELDS, FrameRecord, MethodScore, RunSummary
 
 FRAMES_CSV = "frames.csv"
+FAILURES_JSONL = "failures.jsonl"
 METRICS_JSON = "metrics.json"
 SUMMARY_MD = "summary.md"
 HISTOGRAMS_PNG = "error_histograms.png"
@@ -55,6 +57,7 @@ class RunFiles:
 
     run_dir: Path
     frames_csv: Path
+    failures_jsonl: Path
     metrics_json: Path
     summary_md: Path
     plots: tuple[Path, ...]
@@ -63,8 +66,9 @@ class RunFiles:
 
     def listing(self) -> list[tuple[str, Path]]:
         """(what, path) pairs, for summaries."""
-        listing = [("per-frame results", self.frames_csv), ("metrics", self.metrics_json),
-                   ("summary (Table I)", self.summary_md)]
+        listing = [("per-frame results", self.frames_csv),
+                   ("failed estimates' diagnostics", self.failures_jsonl),
+                   ("metrics", self.metrics_json), ("summary (Table I)", self.summary_md)]
         if self.recording is not None:
             listing.append((RECORDING_NOTE, self.recording))
         return listing + [("plot", path) for path in self.plots]
@@ -264,6 +268,12 @@ def frames_csv_text(records: Iterable[FrameRecord]) -> str:
     return buffer.getvalue()
 
 
+def failures_jsonl_text(failures: Iterable[Mapping]) -> str:
+    """failures.jsonl: one JSON object per line and failed estimate, in frame order
+    (``sim.harness.scoring.failure_entry``); NaN and infinite numbers as null."""
+    return "".join(json.dumps(_json_ready(entry), allow_nan=False) + "\n" for entry in failures)
+
+
 def metrics_document(*, scenario: Mapping, summary: RunSummary, meta: Mapping, status: str,
                      files: RunFiles) -> dict:
     """The content of metrics.json (JSON-ready)."""
@@ -393,9 +403,10 @@ def plot_error_histograms(path: Path, records: Sequence[FrameRecord],
 
 def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
                       records: Sequence[FrameRecord], summary: RunSummary, meta: Mapping,
-                      status: str, plots: bool = True,
+                      status: str, failures: Sequence[Mapping] = (), plots: bool = True,
                       recording: str | Path | None = None, plot_pool=None) -> RunFiles:
-    """Write frames.csv, the plots, summary.md and (last) metrics.json into ``run_dir``.
+    """Write frames.csv, failures.jsonl, the plots, summary.md and (last) metrics.json into
+    ``run_dir``.
 
     Safe to call repeatedly during a run (each call replaces complete files with complete
     files); pass ``plots=False`` for cheap checkpoints.
@@ -408,6 +419,8 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
         meta: facts about the run: ``seed``, methods and their parameters, reference policy,
             duration, anything worth keeping (stored under "run" in metrics.json).
         status: how the run ended, e.g. "complete", "interrupted", "fell at 3.2 s".
+        failures: the failed estimates' entries (``sim.harness.scoring.failure_entry``), in
+            frame order.
         plots: draw the PNG plots (about 0.2 s per method).
         recording: the run's .rrd (written by ``sim.harness.recording.RunRecorder``), to list it.
         plot_pool: a pool of worker processes (``threads.single_thread_pool``) that draws the
@@ -422,10 +435,11 @@ def write_run_outputs(run_dir: str | Path, *, scenario: Mapping,
     if plots:
         plot_paths = tuple(run_dir / name for name in estimates_plot_names(summary.methods)) \
             + (run_dir / HISTOGRAMS_PNG,)
-    files = RunFiles(run_dir, run_dir / FRAMES_CSV, run_dir / METRICS_JSON,
-                     run_dir / SUMMARY_MD, plot_paths,
+    files = RunFiles(run_dir, run_dir / FRAMES_CSV, run_dir / FAILURES_JSONL,
+                     run_dir / METRICS_JSON, run_dir / SUMMARY_MD, plot_paths,
                      None if recording is None else Path(recording))
     write_text_atomic(files.frames_csv, frames_csv_text(records))
+    write_text_atomic(files.failures_jsonl, failures_jsonl_text(failures))
     if plots:
         jobs = [(path, [record for record in records if record.method == method], method)
                 for method, path in zip(summary.methods, plot_paths)]

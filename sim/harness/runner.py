@@ -527,6 +527,7 @@ class Scoring:
             "scene_seed": scenario.scene_seed, "fps": scenario.sensor.fps, **meta,
         }
         self.records: list = []
+        self.failures: list[dict] = []
         self.itf = ItfAccumulator()
         self.references = ReferencePolicy(scenario.evaluation.reference)
         self.status, self.message = COMPLETE, ""
@@ -552,7 +553,7 @@ class Scoring:
 
     def score_frame(self, item: SourceFrame, estimations: Mapping[str, Any], intrinsics) -> None:
         """Score one frame against its reference with the truth and every method; log it."""
-        from sim.harness.scoring import RAW_STREAM, FrameRecord
+        from sim.harness.scoring import RAW_STREAM, FrameRecord, failure_entry
 
         frame, cycle = item.frame, item.gait_cycle
         reference = self.references.reference_for(frame, cycle)
@@ -564,6 +565,9 @@ class Scoring:
                 frame_index=frame.index, time_s=frame.time_s, gait_cycle=cycle,
                 reference_index=reference.index, method=method, estimate=estimate.motion,
                 truth=truth, ms=estimate.ms))
+            if not estimate.motion.ok:
+                self.failures.append(failure_entry(frame_index=frame.index, method=method,
+                                                   estimate=estimate.motion))
             self.itf.add(method, estimate.compensated, gait_cycle=cycle,
                          reference_index=reference.index)
         self.itf.add(RAW_STREAM, frame.disparity8, gait_cycle=cycle,
@@ -592,7 +596,7 @@ class Scoring:
         self.meta["frames_done"] = len(self.records) // max(len(self.methods), 1)
         files = write_run_outputs(
             self.out_dir, scenario=self.scenario_dict, records=self.records,
-            summary=summarize(self.records, self.itf), meta=self.meta,
+            failures=self.failures, summary=summarize(self.records, self.itf), meta=self.meta,
             status=self.status if final else INCOMPLETE, plots=final,
             recording=self.recording_path if final and self.recorder is not None else None,
             # An interrupted run's pool may still hold estimation work: plots drawn here then.

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from sim.harness.ground_truth import GroundTruth
+from sim.harness.methods import RECORDING_KEYS, plain_diagnostics
 from stabilizer.motion import OK, Motion, wrap_angle_deg
 
 #: The three displacements of Table I and their units.
@@ -112,6 +113,17 @@ _TRUTH_FIELDS = dict(zip(AXES, ("true_angle_deg", "true_dx_px", "true_dy_px")))
 _ERROR_FIELDS = dict(zip(AXES, ("err_angle_deg", "err_dx_px", "err_dy_px")))
 #: Column order of frames.csv.
 RECORD_FIELDS = tuple(f.name for f in dataclasses.fields(FrameRecord))
+
+
+def failure_entry(*, frame_index: int, method: str, estimate: Motion) -> dict:
+    """A failed estimate as failures.jsonl keeps it: the frame, the method, the status and the
+    estimate's diagnostics that are plain data (``sim.harness.methods.plain_diagnostics``: a
+    plugin's exception message, the motion the trust check rejected); the images and drawings
+    only the recording shows are left out."""
+    shown = {key: value for key, value in estimate.diagnostics.items()
+             if key not in RECORDING_KEYS and not isinstance(value, np.ndarray)}
+    return {"frame_index": int(frame_index), "method": str(method), "status": estimate.status,
+            "diagnostics": plain_diagnostics(shown)}
 
 
 def _float(value: float | None) -> float:

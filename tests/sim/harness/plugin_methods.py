@@ -106,6 +106,7 @@ class ZeroesItsReference:
 def changes_global_settings(reference: np.ndarray, current: np.ndarray) -> Motion:
     np.seterr(all="raise")
     warnings.simplefilter("error")
+    os.chdir("/")
     return Motion(*FIXED)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import warnings
 
 import numpy as np
@@ -95,10 +96,10 @@ def test_a_method_cannot_change_the_frames_the_others_see(frames, name):
     assert np.array_equal(reference, before[0]) and np.array_equal(current, before[1])
 
 
-def test_a_method_cannot_change_numpys_settings_or_the_warning_filters(frames):
-    settings, filters = np.geterr(), list(warnings.filters)
+def test_a_method_cannot_change_numpys_settings_the_warning_filters_or_the_directory(frames):
+    settings, filters, cwd = np.geterr(), list(warnings.filters), os.getcwd()
     scored(f"{HELPERS}:changes_global_settings", frames)
-    assert np.geterr() == settings and warnings.filters == filters
+    assert np.geterr() == settings and warnings.filters == filters and os.getcwd() == cwd
 
 
 def test_a_methods_diagnostics_keep_plain_data_only(frames):

@@ -11,12 +11,13 @@ import pytest
 from sim.harness.atomic import atomic_path, write_text_atomic
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
-from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, markdown_table, read_metrics,
-                                score_rows, table_one, terminal_summary, write_run_outputs)
+from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, failures_jsonl_text,
+                                markdown_table, read_metrics, score_rows, table_one,
+                                terminal_summary, write_run_outputs)
 from dataclasses import replace
 
 from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
-                                summarize)
+                                failure_entry, summarize)
 from stabilizer.motion import Motion
 
 METHODS = ("t2fuzzy", "sift")
@@ -69,8 +70,9 @@ def run(tmp_path_factory):
 def test_every_file_is_written_and_no_temporary_is_left(run):
     run_dir, files, _, _ = run
     names = sorted(p.name for p in run_dir.iterdir())
-    assert names == sorted(["frames.csv", "metrics.json", "summary.md", "estimates_t2fuzzy.png",
-                            "estimates_sift.png", "error_histograms.png"])
+    assert names == sorted(["frames.csv", "failures.jsonl", "metrics.json", "summary.md",
+                            "estimates_t2fuzzy.png", "estimates_sift.png",
+                            "error_histograms.png"])
     for plot in files.plots:
         assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -90,6 +92,27 @@ def test_frames_csv_has_one_row_per_frame_and_method(run):
     assert all(math.isnan(float(row["epe_px"])) for row in failed)
     assert float(rows[0]["epe_px"]) == first.epe_px > 0.0
     assert float(rows[0]["truth_epe_px"]) == 0.3
+
+
+def test_failures_jsonl_keeps_plain_diagnostics_and_writes_non_finite_numbers_as_null(
+        tmp_path):
+    failed = Motion.failed("unverified", unverified_motion=(1.0, float("nan"), 2.0),
+                           verify_correlation=np.float32(0.25), labels=np.zeros((3, 3)),
+                           ellipses=[(1.0, 2.0)], segmentation=np.ones(4), handle=object())
+    entry = failure_entry(frame_index=np.int64(4), method="m", estimate=failed)
+    assert {key: entry[key] for key in ("frame_index", "method", "status")} == {
+        "frame_index": 4, "method": "m", "status": "unverified"}
+    # The recording's drawings and images are left out; what is not plain data is named.
+    diagnostics = entry["diagnostics"]
+    assert diagnostics.keys() == {"unverified_motion", "verify_correlation",
+                                  "dropped_diagnostics"}
+    assert diagnostics["verify_correlation"] == 0.25
+    assert diagnostics["dropped_diagnostics"] == ["handle"]
+    text = failures_jsonl_text([entry, entry])
+    lines = text.splitlines()
+    assert len(lines) == 2 and text.endswith("\n")
+    assert json.loads(lines[0])["diagnostics"]["unverified_motion"] == [1.0, None, 2.0]
+    assert failures_jsonl_text([]) == ""
 
 
 def test_metrics_json_has_scenario_seed_status_versions_commit_and_scores(run):
@@ -154,8 +177,8 @@ def test_rewriting_replaces_files_and_keeps_the_new_status(run, tmp_path):
         files = write_run_outputs(tmp_path, scenario={}, records=records[:10], summary=summary,
                                   meta={}, status=status, plots=False)
         assert json.loads(files.metrics_json.read_text())["status"] == status
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames.csv", "metrics.json",
-                                                          "summary.md"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["failures.jsonl", "frames.csv",
+                                                          "metrics.json", "summary.md"]
 
 
 def test_terminal_summary_of_a_stopped_run_over_a_finished_one_says_it_was_not_kept(run,

@@ -14,6 +14,7 @@ from scenarios import SCENARIOS_DIR
 from sim.harness.runner import RunConfig, run
 from sim.world.sensor.sr4000 import SR4000
 from sim.world.walking import RobotSimulation
+from tests.sim.harness import plugin_methods
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 METHODS = ("t2fuzzy", "ecc")
@@ -36,6 +37,7 @@ def _short_run(tmp_path, name="run", record=False, **kwargs):
 def test_run_writes_every_output_and_they_agree(tmp_path):
     metrics, run_dir = _short_run(tmp_path, record=True)
     assert metrics["status"] == "complete"
+    assert (run_dir / "failures.jsonl").is_file()
     for name in ("frames.csv", "metrics.json", "summary.md", "recording.rrd",
                  "error_histograms.png", "estimates_t2fuzzy.png", "estimates_ecc.png"):
         assert (run_dir / name).stat().st_size > 0, name
@@ -51,6 +53,29 @@ def test_run_writes_every_output_and_they_agree(tmp_path):
     first = next(row for row in rows if row["frame_index"] == "0")
     assert first["reference_index"] == "0"
     assert abs(float(first["true_angle_deg"])) < 1e-9 and abs(float(first["true_dx_px"])) < 1e-9
+
+
+def test_each_failed_estimate_keeps_its_diagnostics_in_failures_jsonl(tmp_path):
+    helpers = "tests.sim.harness.plugin_methods"
+    methods = ("ecc", f"{helpers}:raising", f"{helpers}:fixed_tuple")
+    folders = [_short_run(tmp_path, f"w{workers}", methods=methods, max_frames=3,
+                          workers=workers)[1] for workers in (1, 2)]
+    lines = (folders[0] / "failures.jsonl").read_text().splitlines()
+    assert (folders[1] / "failures.jsonl").read_text().splitlines() == lines
+    failures = [json.loads(line) for line in lines]
+    failed_rows = [(int(row["frame_index"]), row["method"], row["status"])
+                   for row in _rows(folders[0]) if row["status"] != "ok"]
+    assert [(f["frame_index"], f["method"], f["status"]) for f in failures] == failed_rows
+    raised = [f for f in failures if f["method"] == methods[1]]
+    assert len(raised) == 3 and all(
+        f["status"] == "exception:ValueError"
+        and f["diagnostics"]["message"] == "this method always fails" for f in raised)
+    # The reference frame scored against itself: the fixed motion is not the identity.
+    rejected = next(f for f in failures if f["method"] == methods[2])
+    assert rejected["frame_index"] == 0 and rejected["status"] == "unverified"
+    assert rejected["diagnostics"]["unverified_motion"] == list(plugin_methods.FIXED)
+    listed = json.loads((folders[0] / "metrics.json").read_text())["files"]
+    assert listed["failed estimates' diagnostics"] == "failures.jsonl"
 
 
 def test_same_scenario_and_seed_give_identical_results(tmp_path):

@@ -222,8 +222,8 @@ def test_a_finished_run_over_a_finished_one_leaves_none_of_the_old_runs_files(fo
                       record=False, workers=1))
     # sift's old plot does not pass for the new run's; the user's file stays.
     assert sorted(path.name for path in out.iterdir()) == [
-        "error_histograms.png", "estimates_ecc.png", "frames.csv", "metrics.json", "notes.txt",
-        "summary.md"]
+        "error_histograms.png", "estimates_ecc.png", "failures.jsonl", "frames.csv", "metrics.json",
+        "notes.txt", "summary.md"]
 
 
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
