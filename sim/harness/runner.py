@@ -514,10 +514,14 @@ class Scoring:
 
         self.scenario, self.methods = scenario, methods
         # A run over a finished one is written beside it and replaces it only once finished
-        # itself: an interrupt or an error then leaves the finished run as it was.
+        # itself: an interrupt or an error then leaves the finished run as it was. A run over
+        # an unfinished one is written in place; the files of the earlier run that it does
+        # not write go when it ends.
         self.final_dir = Path(out_dir)
         self.out_dir = (self.final_dir / STAGING_FOLDER if _finished_run(self.final_dir)
                         else self.final_dir)
+        self.unfinished_files = (_listed_files(self.final_dir)
+                                 if self.out_dir == self.final_dir else set())
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.recording_path = self.out_dir / RECORDING_RRD if record else None
         self.scenario_dict = scenario.to_dict()
@@ -625,10 +629,14 @@ class Scoring:
 
     def _settle(self) -> None:
         """A run written beside a finished one: its files replace the finished run's when it
-        finished too (metrics.json last, each file atomically), and go otherwise."""
-        if self.out_dir == self.final_dir:
-            return
+        finished too (metrics.json last, each file atomically), and go otherwise. A run written
+        over an unfinished one: the earlier run's files it did not write go."""
         from sim.harness.report import METRICS_JSON
+
+        if self.out_dir == self.final_dir:
+            for name in self.unfinished_files - _listed_files(self.final_dir):
+                (self.final_dir / name).unlink(missing_ok=True)
+            return
 
         staged = self.out_dir / METRICS_JSON
         if self.status in (COMPLETE, FELL) and staged.is_file():

@@ -226,6 +226,21 @@ def test_a_finished_run_over_a_finished_one_leaves_none_of_the_old_runs_files(fo
         "notes.txt", "summary.md"]
 
 
+def test_a_run_over_an_unfinished_one_leaves_none_of_the_old_runs_files(
+        folders, tmp_path, interrupt_ground_truth):
+    out = tmp_path / "out"
+    interrupt_ground_truth(3)
+    stopped = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
+                                methods=("ecc", "sift"), record=False, workers=1))
+    assert stopped["status"] == "interrupted" and (out / "estimates_sift.png").is_file()
+    (out / "notes.txt").write_text("mine")
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out), methods=("ecc",),
+                      record=False, workers=1))
+    assert sorted(path.name for path in out.iterdir()) == [
+        "error_histograms.png", "estimates_ecc.png", "failures.jsonl", "frames.csv",
+        "metrics.json", "notes.txt", "summary.md"]
+
+
 def test_the_sequence_folder_is_refused_as_the_run_folder(folders, capsys):
     sequence = folders / "sequence"
     before = sorted(path.name for path in sequence.iterdir())
