@@ -105,12 +105,26 @@ class SiftEstimator:
         self.border_margin_px = border_margin_px
         self.max_hypotheses = max_hypotheses
         self._shape = reference.shape
-        self._sift = cv2.SIFT_create(nfeatures=max_features, contrastThreshold=contrast_threshold,
+        self._detector_params = dict(nfeatures=max_features, contrastThreshold=contrast_threshold,
                                      edgeThreshold=edge_threshold)
-        self._matcher = cv2.BFMatcher(cv2.NORM_L2)
+        self._sift, self._matcher = self._detector_and_matcher()
         self._reference_problem = frame_problem(reference, "reference")
         self._reference_points, self._reference_descriptors = self._features(
             denoised(reference, median_ksize))
+
+    def _detector_and_matcher(self) -> tuple[cv2.SIFT, cv2.BFMatcher]:
+        return cv2.SIFT_create(**self._detector_params), cv2.BFMatcher(cv2.NORM_L2)
+
+    # OpenCV's detector and matcher do not pickle (a Stabilizer sent to another process): they
+    # hold no state of the frames, so they are rebuilt from the parameters.
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        del state["_sift"], state["_matcher"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._sift, self._matcher = self._detector_and_matcher()
 
     def _features(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         mask = valid_interior(image, self.border_margin_px)

@@ -1,6 +1,7 @@
 """Input validation and degenerate inputs through ``stabilizer.estimate``."""
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -123,6 +124,14 @@ def test_a_reference_buffer_the_caller_fills_again_leaves_the_stabilizer_as_it_w
     current = apply_motion(REFERENCE, Motion(3.0, 5.0, -2.0))
     fresh = stabilizer.Stabilizer(REFERENCE.copy(), method).estimate(current)
     assert tracker.estimate(current).as_tuple() == fresh.as_tuple()
+
+
+@pytest.mark.parametrize("method", stabilizer.available_methods())
+def test_a_pickled_stabilizer_estimates_as_the_original(method):
+    tracker = stabilizer.Stabilizer(REFERENCE, method)
+    current = apply_motion(REFERENCE, Motion(3.0, 5.0, -2.0))
+    copy = pickle.loads(pickle.dumps(tracker))
+    assert copy.estimate(current).as_tuple() == tracker.estimate(current).as_tuple()
 
 
 def test_float_depth_is_accepted_and_equals_its_disparity():
