@@ -22,7 +22,8 @@ from typing import NoReturn
 from scenarios import DEFAULT_SCENARIO
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
-from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option, path_option
+from sim.harness.validation import (MAX_SEED, POSITIVE_INTEGER, integer_option, number_option,
+                                    path_option)
 
 #: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
 #: command that SIGPIPE ended.
@@ -36,6 +37,8 @@ DEFAULT_SEQUENCES = Path("sequences")
 
 #: The most frames of the ideal experiment's cycle (each held in memory: 25 kB at 176 x 144).
 MAX_IDEAL_FRAMES = 10_000
+#: The largest unit of a 16-bit depth PNG (1 m: 65 km at most).
+MAX_DEPTH_UNIT_MM = 1000.0
 
 
 def _methods(text: str) -> tuple[str, ...]:
@@ -169,9 +172,10 @@ def _cmd_ideal(args: argparse.Namespace) -> int:
 
     metrics = run_ideal(IdealConfig(image=args.image, out_dir=str(args.out),
                                     trajectory=args.trajectory, methods=args.methods,
-                                    n_frames=args.frames, resize=args.resize))
+                                    n_frames=args.frames, resize=args.resize,
+                                    depth_unit_mm=args.depth_unit_mm))
     print(terminal_summary(metrics, args.out))
-    return 0
+    return _ending("egostab ideal", metrics["status"], metrics["run"].get("message", ""))
 
 
 def _cmd_aggregate(args: argparse.Namespace) -> int:
@@ -312,13 +316,22 @@ def build_parser() -> argparse.ArgumentParser:
 
     ideal = commands.add_parser(
         "ideal", help="the paper's ideal experiment: move one image along a known trajectory")
-    ideal.add_argument("image", help="disparity/depth PNG (8- or 16-bit), .npy depth in metres, "
-                                     "or a scene name to render noise-free (e.g. corridor)")
+    ideal.add_argument("image", help="PNG: 8-bit disparity or 16-bit depth (see "
+                                     "--depth-unit-mm); .npy depth in metres; or a scene name "
+                                     "to render noise-free (e.g. corridor)")
     ideal.add_argument("--trajectory", default="paper_cycle",
                        help="'paper_cycle' (default: one gait cycle of the paper's magnitudes) "
-                            "or a frames.csv of a walking run (its ground truth is replayed)")
-    ideal.add_argument("--frames", type=integer_option(2, MAX_IDEAL_FRAMES), default=30,
-                       help=f"frames per cycle (default 30, at most {MAX_IDEAL_FRAMES:,})")
+                            "or a frames.csv of a walking run (its ground truth is replayed, "
+                            "every frame; rotations within 180 deg, shifts within the image's "
+                            "width and height)")
+    ideal.add_argument("--frames", type=integer_option(2, MAX_IDEAL_FRAMES), default=None,
+                       help=f"frames of the paper cycle (default 30, at most "
+                            f"{MAX_IDEAL_FRAMES:,}); refused with a frames.csv trajectory")
+    ideal.add_argument("--depth-unit-mm", type=number_option(0.0, MAX_DEPTH_UNIT_MM),
+                       default=None, metavar="MM",
+                       help="millimetres per unit of a 16-bit depth PNG (default: the unit "
+                            "its sequence.json states for a frame of a sequence folder's "
+                            "depth/ or exact/, 0.1 or 0.5; else 1)")
     ideal.add_argument("--methods", type=_method_list, default=None,
                        help="comma-separated methods (built-in, entry point or "
                             "package.module:Name; see `egostab methods`), or 'all' (default: "

@@ -30,11 +30,15 @@ from functools import lru_cache
 import numpy as np
 
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
-from stabilizer.motion import Motion, motion_matrix, transform_points
+from stabilizer.motion import OK, Motion, motion_matrix, transform_points
 from stabilizer.rigid_fit import fit_rigid
 
-#: Fewest surviving correspondences for a fit; fewer gives Motion.failed("no_overlap").
+#: Fewest surviving correspondences for a fit; fewer gives Motion.failed(NO_OVERLAP).
 MIN_POINTS = 50
+#: The status of a truth that could not be fitted, and every status a truth can have (the
+#: ``truth_status`` column of frames.csv and truth.csv; compared as written, case included).
+NO_OVERLAP = "no_overlap"
+TRUTH_STATUSES = (OK, NO_OVERLAP)
 #: Occlusion test: a projected point farther than the current measured depth by more than
 #: ``abs + rel * depth`` is hidden. Generous enough for the SR4000's mm-level noise and the
 #: mixed pixels at depth edges, tight enough to catch a real foreground object (>= 0.1 m).
@@ -278,7 +282,7 @@ def ground_truth(reference: Frame, current: Frame,
     keep = inside & ~occluded
     n_points = int(np.count_nonzero(keep))
     if n_points < max(min_points, 2):
-        return GroundTruth(Motion.failed("no_overlap", n_points=n_points), math.nan, n_points)
+        return GroundTruth(Motion.failed(NO_OVERLAP, n_points=n_points), math.nan, n_points)
 
     kept = np.flatnonzero(usable)[keep]
     source, target = np.empty((n_points, 2)), np.empty((n_points, 2))

@@ -79,12 +79,17 @@ class RunConfig:
     workers: int | None = 1
 
     def __post_init__(self):
-        from sim.harness.sequence import holds_sequence
+        check_not_a_sequence(self.out_dir)
 
-        # A run's files would mix with the sequence's (score refuses the same).
-        if holds_sequence(self.out_dir):
-            raise ValueError(f"--out {self.out_dir}: holds a recorded sequence; accepted: a "
-                             "folder of its own for the run")
+
+def check_not_a_sequence(out_dir: str | os.PathLike) -> None:
+    """Refuse a run folder that holds a recorded sequence: the run's files would mix with the
+    sequence's (``score`` refuses any folder inside the sequence it scores)."""
+    from sim.harness.sequence import holds_sequence
+
+    if holds_sequence(out_dir):
+        raise ValueError(f"--out {out_dir}: holds a recorded sequence; accepted: a folder of "
+                         "its own for the run")
 
 
 def scenario_name(scenario: str | os.PathLike) -> str:
@@ -513,16 +518,8 @@ class Scoring:
         from sim.harness.scoring import ItfAccumulator
 
         self.scenario, self.methods = scenario, methods
-        # A run over a finished one is written beside it and replaces it only once finished
-        # itself: an interrupt or an error then leaves the finished run as it was. A run over
-        # an unfinished one is written in place; the files of the earlier run that it does
-        # not write go when it ends.
-        self.final_dir = Path(out_dir)
-        self.out_dir = (self.final_dir / STAGING_FOLDER if _finished_run(self.final_dir)
-                        else self.final_dir)
-        self.unfinished_files = (_listed_files(self.final_dir)
-                                 if self.out_dir == self.final_dir else set())
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.folder = RunFolder(out_dir)
+        self.final_dir, self.out_dir = self.folder.final_dir, self.folder.out_dir
         self.recording_path = self.out_dir / RECORDING_RRD if record else None
         self.scenario_dict = scenario.to_dict()
         self.meta: dict[str, Any] = {
@@ -628,30 +625,51 @@ class Scoring:
             self._settle()
 
     def _settle(self) -> None:
-        """A run written beside a finished one: its files replace the finished run's when it
-        finished too (metrics.json last, each file atomically), and go otherwise. A run written
-        over an unfinished one: the earlier run's files it did not write go."""
+        self.folder.settle(finished=self.status in (COMPLETE, FELL))
+
+
+class RunFolder:
+    """Where a run into ``final_dir`` writes until it ends, and how it leaves the folder.
+
+    A run over a finished one ("complete" or "fell") is written beside it, in
+    :data:`STAGING_FOLDER`, and replaces it only if it finishes too (:meth:`settle`): an
+    interrupt or an error leaves the finished run as it was. A run over an unfinished one, or
+    into a new folder, is written in place. Either way, once the new run has replaced the
+    earlier one, the earlier run's own files (those its metrics.json lists) that the new one
+    did not write go: its recording, the plots of methods no longer run would pass for the new
+    run's. Other files in the folder stay.
+    """
+
+    def __init__(self, final_dir: str | os.PathLike):
+        self.final_dir = Path(final_dir)
+        beside = _finished_run(self.final_dir)
+        self.out_dir = self.final_dir / STAGING_FOLDER if beside else self.final_dir
+        # Read before the new run's first write replaces its metrics.json.
+        self._unfinished_files = set() if beside else _listed_files(self.final_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+
+    def settle(self, finished: bool) -> None:
+        """End the run written in ``out_dir``: in place, remove the unfinished run's files it
+        did not write; beside a finished run, replace that run's files when ``finished``
+        (metrics.json last, each file atomically), and remove the staging folder."""
         from sim.harness.report import METRICS_JSON
 
         if self.out_dir == self.final_dir:
-            for name in self.unfinished_files - _listed_files(self.final_dir):
-                (self.final_dir / name).unlink(missing_ok=True)
+            self._remove_earlier(self._unfinished_files)
             return
-
         staged = self.out_dir / METRICS_JSON
-        if self.status in (COMPLETE, FELL) and staged.is_file():
+        if finished and staged.is_file():
             previous = _listed_files(self.final_dir)
-            written = set()
             for path in sorted(self.out_dir.iterdir()):
                 if path.is_file() and path.name != METRICS_JSON:
                     os.replace(path, self.final_dir / path.name)
-                    written.add(path.name)
             os.replace(staged, self.final_dir / METRICS_JSON)
-            # The previous run's own files that this one did not write (its recording, the
-            # plots of methods no longer run) would pass for this run's; other files stay.
-            for name in previous - written - {METRICS_JSON}:
-                (self.final_dir / name).unlink(missing_ok=True)
+            self._remove_earlier(previous)
         shutil.rmtree(self.out_dir, ignore_errors=True)
+
+    def _remove_earlier(self, earlier: set[str]) -> None:
+        for name in earlier - _listed_files(self.final_dir):
+            (self.final_dir / name).unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)

@@ -184,6 +184,26 @@ def holds_sequence(folder: str | Path) -> bool:
         f"{FORMAT_NAME}/")
 
 
+def frame_depth_unit_m(png: str | Path) -> float | None:
+    """Metres per unit of ``png`` when it is a frame of a sequence folder (a file of its
+    ``depth/`` or ``exact/`` folder, beside a sequence.json of this format): that header's
+    ``depth_unit_m`` or ``exact_depth_unit_m``; None for any other file. A header whose unit
+    is missing or not one of the format's is refused (FileValueError, one line)."""
+    path = Path(png).resolve()
+    folder, sub = path.parent.parent, path.parent.name
+    if sub not in (DEPTH_DIR, EXACT_DIR) or not holds_sequence(folder):
+        return None
+    header = json.loads((folder / SEQUENCE_JSON).read_text(encoding="utf-8"))
+    key, allowed = (("depth_unit_m", DEPTH_UNITS_M) if sub == DEPTH_DIR
+                    else ("exact_depth_unit_m", (EXACT_DEPTH_UNIT_M,)))
+    unit = header.get(key, _MISSING)
+    if unit not in allowed:
+        raise FileValueError(str(folder / SEQUENCE_JSON), key,
+                             "is missing" if unit is _MISSING else f"is {unit!r}",
+                             f"one of {', '.join(map(str, allowed))} (metres per PNG unit)")
+    return float(unit)
+
+
 def check_recording_folder(out_dir: str | Path) -> None:
     """Refuse a folder that holds what a recording replaces (``depth/``, ``exact/``,
     sequence.json, truth.csv, groundtruth.txt) but no sequence of this format: recording there

@@ -108,6 +108,23 @@ def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def number_option(above: float, most: float) -> Callable[[str], float]:
+    """An argparse ``type``: a number greater than ``above`` and at most ``most``; anything
+    else (NaN, infinity too) is refused with the text given and what is accepted."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (above < value <= most):  # NaN fails every comparison
+            raise argparse.ArgumentTypeError(f"{text!r}: accepted: a number greater than "
+                                             f"{above:g} and at most {most:g}")
+        return value
+
+    return parse
+
+
 def path_option(text: str) -> Path:
     """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
     refused rather than taken for the working directory, and a leading ``~`` that the shell

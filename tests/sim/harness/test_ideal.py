@@ -3,11 +3,27 @@
 from __future__ import annotations
 
 import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import warnings
+import zlib
 
+import cv2
 import numpy as np
 import pytest
 
-from sim.harness.ideal import IdealConfig, load_trajectory, paper_cycle, run_ideal, trajectory_from_run
+from scenarios import SCENARIOS_DIR
+from sim.harness.cli import main
+from sim.harness.ground_truth import GroundTruth
+from sim.harness.ideal import (IdealConfig, load_image, load_trajectory, paper_cycle, run_ideal,
+                               trajectory_from_run)
+from sim.harness.interrupts import Interrupted
+from sim.harness.runner import STAGING_FOLDER, RecordConfig, record
 from sim.harness.validation import FileValueError
 from stabilizer import depth_to_disparity
 from stabilizer.testing import make_depth_scene
@@ -84,10 +100,6 @@ def test_a_truth_that_is_not_finite_is_refused_by_line(tmp_path, value):
 
 
 def test_disparity_png_round_trip_is_exact(tmp_path):
-    import cv2
-
-    from sim.harness.ideal import load_image
-
     image = depth_to_disparity(make_depth_scene(3))
     cv2.imwrite(str(tmp_path / "d.png"), image)
     assert np.array_equal(load_image(str(tmp_path / "d.png")), image)
@@ -95,8 +107,6 @@ def test_disparity_png_round_trip_is_exact(tmp_path):
 
 @pytest.mark.parametrize("data", [b"\x89PNG\r\n\x1a\nnot a header", b"not an image at all"])
 def test_an_unreadable_image_is_refused_in_one_line(tmp_path, capfd, data):
-    from sim.harness.cli import main
-
     path = tmp_path / "broken.png"
     path.write_bytes(data)
     assert main(["ideal", str(path), "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
@@ -106,10 +116,6 @@ def test_an_unreadable_image_is_refused_in_one_line(tmp_path, capfd, data):
 
 
 def test_an_image_larger_than_opencv_decodes_is_refused_in_one_line(tmp_path, capfd):
-    import zlib
-
-    from sim.harness.cli import main
-
     def chunk(kind, data):
         body = kind + data
         return len(data).to_bytes(4, "big") + body + zlib.crc32(body).to_bytes(4, "big")
@@ -129,8 +135,258 @@ def test_an_image_larger_than_opencv_decodes_is_refused_in_one_line(tmp_path, ca
     (["--methods", "all,ecc"], "'all' alone"),
 ])
 def test_ideal_options_out_of_range_are_refused(tmp_path, capsys, argv, words):
-    from sim.harness.cli import main
-
     with pytest.raises(SystemExit) as exit_info:
         main(["ideal", "corridor", *argv, "--out", str(tmp_path / "out")])
     assert exit_info.value.code == 2 and words in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ interrupted experiments
+def _frames_csv(path, rows: str, method_column: bool = False):
+    """A trajectory frames.csv of ``rows`` (frame_index,truth_status,angle,dx,dy[,method])."""
+    header = "frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px"
+    path.write_text(header + (",method" if method_column else "") + "\n" + rows)
+    return path
+
+
+def _wait_for(predicate, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out")
+        time.sleep(0.05)
+
+
+def _ideal_stopped_by_sigterm(tmp_path, out_dir, started):
+    """``egostab ideal`` of a long cycle into ``out_dir``, sent SIGTERM once ``started()``;
+    its exit status and stderr."""
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sim.harness.cli", "ideal", str(tmp_path / "depth.npy"),
+         "--methods", "ecc", "--frames", "10000", "--out", str(out_dir)],
+        env={**os.environ, "OMP_NUM_THREADS": "1"}, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE)
+    try:
+        _wait_for(started, 120)
+        time.sleep(1.0)  # some frames are done
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    return process.returncode, err.decode()
+
+
+def test_an_ideal_stopped_by_sigterm_leaves_complete_files_saying_so(tmp_path):
+    out_dir = tmp_path / "out"
+    status, err = _ideal_stopped_by_sigterm(tmp_path, out_dir,
+                                            lambda: (out_dir / "metrics.json").exists())
+    assert status == 130, err
+    assert err.strip().splitlines()[-1] == "egostab ideal: interrupted by SIGTERM"
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted"
+    assert metrics["run"]["message"] == "interrupted by SIGTERM"
+    done = metrics["run"]["frames_done"]
+    assert 0 < done < 10000 and metrics["summary"]["n_frames"] == done
+    assert len((out_dir / "frames.csv").read_text().splitlines()) == 1 + done
+    assert (out_dir / "summary.md").exists() and (out_dir / "estimates_ecc.png").exists()
+    assert not list(out_dir.glob(".*"))  # no temporary file, no staging folder
+
+
+def test_an_ideal_stopped_by_sigterm_over_a_finished_one_leaves_it_as_it_was(tmp_path):
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    out_dir = tmp_path / "out"
+    run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(out_dir), methods=("ecc", "t2fuzzy"),
+                          n_frames=4))
+    before = {path.name: path.read_bytes() for path in out_dir.iterdir()}
+    status, err = _ideal_stopped_by_sigterm(
+        tmp_path, out_dir, lambda: (out_dir / STAGING_FOLDER / "metrics.json").exists())
+    assert status == 130, err
+    assert err.strip().splitlines()[-1] == "egostab ideal: interrupted by SIGTERM"
+    assert {path.name: path.read_bytes() for path in out_dir.iterdir()} == before
+
+
+def test_an_interrupted_ideal_keeps_the_frames_it_finished(tmp_path, monkeypatch):
+    """In process: the stop comes in the third frame; two frames, every method's, are kept."""
+    real, calls = GroundTruth.exact, []
+
+    def interrupting(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise Interrupted("SIGTERM")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(GroundTruth, "exact", staticmethod(interrupting))
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    metrics = run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "out"),
+                                    methods=("ecc", "t2fuzzy"), n_frames=6))
+    assert metrics["status"] == "interrupted"
+    assert metrics["run"]["message"] == "interrupted by SIGTERM"
+    assert metrics["run"]["frames_done"] == 2
+    assert json.loads((tmp_path / "out" / "metrics.json").read_text()) == metrics
+    with open(tmp_path / "out" / "frames.csv", newline="") as handle:
+        assert len(list(csv.DictReader(handle))) == 2 * 2
+
+
+# ------------------------------------------------------------- trajectories and their bounds
+@pytest.mark.parametrize("row, column, allowed", [
+    ("1,ok,0,1e308,0", "true_dx_px", "at most 176 px either way (the image's width"),
+    ("1,ok,0,-1e6,0", "true_dx_px", "at most 176 px either way (the image's width"),
+    ("1,ok,0,0,145", "true_dy_px", "at most 144 px either way (the image's height"),
+    ("1,ok,1e300,0,0", "true_angle_deg", "at most 180 deg either way"),
+])
+def test_an_ideal_trajectory_beyond_its_bounds_is_refused_by_line(tmp_path, capfd, row, column,
+                                                                  allowed):
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))  # 176 x 144 pixels
+    path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n{row}\n")
+    assert main(["ideal", str(tmp_path / "depth.npy"), "--trajectory", str(path),
+                 "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert f"frames.csv:3: {column}: is " in err and allowed in err and "\n" not in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_ideal_trajectory_within_its_bounds_is_replayed(tmp_path):
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    path = _frames_csv(tmp_path / "frames.csv", "0,ok,-180,176,-144\n1,ok,3,-4,5\n")
+    metrics = run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "out"),
+                                    trajectory=str(path), methods=("ecc",)))
+    assert metrics["status"] == "complete" and metrics["summary"]["n_frames"] == 2
+    # Without an image, the bound is the longest side any image may have.
+    assert trajectory_from_run(_frames_csv(tmp_path / "far.csv", "0,ok,0,100000,0\n"))
+
+
+@pytest.mark.parametrize("status", ["OK", " ok", "Ok", "failed"])
+def test_an_ideal_truth_status_not_written_by_a_run_is_refused(tmp_path, status):
+    path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n1,{status},1,2,3\n")
+    with pytest.raises(FileValueError, match=r"frames.csv:3: truth_status: is .*'ok' or "
+                                             r"'no_overlap'"):
+        trajectory_from_run(path)
+
+
+def test_an_ideal_trajectory_skips_frames_without_truth_only(tmp_path):
+    path = _frames_csv(tmp_path / "frames.csv", "0,ok,0,0,0\n1,no_overlap,nan,nan,nan\n"
+                                                "2,ok,1,2,3\n")
+    assert [m.as_tuple() for m in trajectory_from_run(path)] == [(0, 0, 0), (1, 2, 3)]
+
+
+@pytest.mark.parametrize("rows, method_column, words", [
+    ("0,ok,0,0,0\n0,ok,0,0,0\n", False, "frame_index: 0 repeats line 2;"),
+    ("0,ok,0,0,0,ecc\n0,ok,0,0,0,t2fuzzy\n1,ok,1,1,1,ecc\n1,ok,1,1,1,ecc\n", True,
+     "frames.csv:5: frame_index: 1 repeats line 4 for method 'ecc'"),
+    ("0,ok,0,0,0,ecc\n0,ok,0,1,0,t2fuzzy\n", True, "frame 0's truth differs from line 2's"),
+])
+def test_an_ideal_trajectory_with_a_repeated_frame_is_refused(tmp_path, rows, method_column,
+                                                              words):
+    path = _frames_csv(tmp_path / "frames.csv", rows, method_column)
+    with pytest.raises(FileValueError) as error:
+        trajectory_from_run(path)
+    assert words in str(error.value)
+
+
+def test_an_ideal_run_frames_csv_with_one_row_per_method_is_one_frame_each(tmp_path):
+    path = _frames_csv(tmp_path / "frames.csv", "0,ok,0,0,0,ecc\n0,ok,0,0,0,t2fuzzy\n"
+                                                "1,ok,1,2,3,ecc\n1,ok,1,2,3,t2fuzzy\n", True)
+    assert len(trajectory_from_run(path)) == 2
+
+
+def test_ideal_frames_with_a_trajectory_file_is_refused(tmp_path, capsys):
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    path = _frames_csv(tmp_path / "frames.csv", "0,ok,0,0,0\n1,ok,1,2,3\n")
+    assert main(["ideal", str(tmp_path / "depth.npy"), "--trajectory", str(path),
+                 "--frames", "5", "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--frames 5 with the trajectory" in err and "'paper_cycle' only" in err, err
+    assert "\n" not in err and not (tmp_path / "out").exists()
+    with pytest.raises(ValueError, match="--frames 5"):
+        load_trajectory(str(path), 5)
+
+
+# ------------------------------------------------------------------------------ images
+def test_an_ideal_sequence_frame_is_read_in_the_sequences_depth_unit(tmp_path, capsys):
+    sequence = tmp_path / "sequence"
+    record(RecordConfig(str(SCENARIOS_DIR / "ci" / "ci_corridor.toml"), str(sequence),
+                        max_frames=1))
+    header = json.loads((sequence / "sequence.json").read_text())
+    for sub, key in (("depth", "depth_unit_m"), ("exact", "exact_depth_unit_m")):
+        png = sequence / sub / "000000.png"
+        units = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        assert units.dtype == np.uint16
+        expected = depth_to_disparity(np.where(units > 0, units * header[key], np.nan))
+        assert np.count_nonzero(expected) > units.size // 2
+        assert np.array_equal(load_image(str(png)), expected), sub
+        # The same PNG outside its sequence: millimetres unless told its unit.
+        alone = tmp_path / f"{sub}.png"
+        shutil.copy(png, alone)
+        assert not np.array_equal(load_image(str(alone)), expected)
+        assert np.array_equal(load_image(str(alone), depth_unit_mm=header[key] * 1000),
+                              expected)
+    assert header["depth_unit_m"] == 1e-4  # the SR4000's reported depth: 0.1 mm
+    assert main(["ideal", str(sequence / "depth" / "000000.png"), "--methods", "ecc",
+                 "--frames", "2", "--out", str(tmp_path / "out")]) == 0
+    run = json.loads((tmp_path / "out" / "metrics.json").read_text())["run"]
+    assert run["depth_unit_mm"] == pytest.approx(0.1)
+    assert main(["ideal", str(tmp_path / "depth.png"), "--depth-unit-mm", "0.1",
+                 "--methods", "ecc", "--frames", "2", "--out", str(tmp_path / "o2")]) == 0
+    assert json.loads((tmp_path / "o2" / "metrics.json").read_text())["run"][
+        "depth_unit_mm"] == 0.1
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "1e9", "mm"])
+def test_an_ideal_depth_unit_out_of_range_is_refused(tmp_path, capsys, value):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["ideal", "corridor", "--depth-unit-mm", value, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert exit_info.value.code == 2 and "a number greater than 0 and at most 1000" in err
+    assert "\n" not in err
+
+
+def test_an_ideal_depth_unit_for_an_image_without_one_is_refused(tmp_path, capsys):
+    cv2.imwrite(str(tmp_path / "d.png"), depth_to_disparity(make_depth_scene(3)))
+    np.save(tmp_path / "depth.npy", make_depth_scene(3))
+    for image in ("d.png", "depth.npy"):
+        assert main(["ideal", str(tmp_path / image), "--depth-unit-mm", "0.1",
+                     "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "accepted: --depth-unit-mm with a 16-bit depth PNG only" in err, err
+        assert "\n" not in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("suffix, kind", [(".jpg", "a JPEG image"), (".tiff", "a TIFF image"),
+                                          (".png", "a JPEG image")])
+def test_an_ideal_image_other_than_png_is_refused_in_one_line(tmp_path, capfd, suffix, kind):
+    image = depth_to_disparity(make_depth_scene(3))
+    path = tmp_path / f"scene{suffix}"
+    if suffix == ".png":  # a JPEG named .png
+        path.write_bytes(cv2.imencode(".jpg", image)[1].tobytes())
+    else:
+        assert cv2.imwrite(str(path), image)
+    assert main(["ideal", str(path), "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert f"got {kind}; accepted: a single-channel 8-bit (disparity) or 16-bit" in err, err
+    assert "\n" not in err and not (tmp_path / "out").exists()
+
+
+def test_an_ideal_complex_depth_array_is_refused_without_a_warning(tmp_path, capfd):
+    np.save(tmp_path / "complex.npy", make_depth_scene(3).astype(np.complex128))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["ideal", str(tmp_path / "complex.npy"), "--methods", "ecc",
+                     "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert "need a 2-D array of real depths in metres" in err and "complex128" in err, err
+    assert "\n" not in err
+
+
+def test_an_ideals_metrics_record_the_image_size_and_resize(tmp_path):
+    image = np.kron(depth_to_disparity(make_depth_scene(3)), np.ones((10, 10), np.uint8))
+    cv2.imwrite(str(tmp_path / "large.png"), image)  # 1760 x 1440 pixels
+    metrics = run_ideal(IdealConfig(str(tmp_path / "large.png"), str(tmp_path / "out"),
+                                    methods=("ecc",), n_frames=2, resize=True))
+    run = metrics["run"]
+    assert run["resize"] is True and run["image_size_read"] == [1760, 1440]
+    width, height = run["image_size"]
+    assert width * height <= 1280 * 1024 and width / height == pytest.approx(1760 / 1440, rel=0.01)
+    assert run["depth_unit_mm"] is None
+    np.save(tmp_path / "depth.npy", make_depth_scene(3))
+    run = run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "small"),
+                                methods=("ecc",), n_frames=2))["run"]
+    assert run["resize"] is False and run["image_size"] == run["image_size_read"] == [176, 144]

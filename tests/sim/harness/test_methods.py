@@ -238,6 +238,11 @@ def test_the_ideal_experiment_names_a_plugin_by_the_string_given(tmp_path, frame
     assert {row["status"] for row in plugin} == {"unverified"}
     assert {row["status"] for row in rows if row["method"] == f"{HELPERS}:raising"} == {
         "exception:ValueError"}
+    failures = [json.loads(line) for line in (out_dir / "failures.jsonl").read_text().splitlines()]
+    assert [(f["frame_index"], f["method"]) for f in failures] == [
+        (int(row["frame_index"]), row["method"]) for row in rows if row["status"] != "ok"]
+    assert {f["diagnostics"]["message"] for f in failures
+            if f["method"] == f"{HELPERS}:raising"} == {"this method always fails"}
     metrics = json.loads((out_dir / "metrics.json").read_text())
     assert name in metrics["run"]["methods"]
     assert (out_dir / "estimates_tests.sim.harness.plugin_methods_fixed_tuple.png").is_file()

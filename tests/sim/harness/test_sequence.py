@@ -264,14 +264,17 @@ def test_the_default_scenario_records_within_60_mb(tmp_path):
     assert size / 30 * n_frames <= 60e6
 
 
-def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys):
+@pytest.mark.parametrize("command", [
+    ["run", CI_CORRIDOR, "--max-frames", "2", "--no-record", "--methods", "ecc", "--quiet"],
+    ["ideal", "corridor", "--frames", "2", "--methods", "ecc"],
+])
+def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys, command):
     from sim.harness.cli import main
 
     folder = tmp_path / "seq"
     shutil.copytree(sequence_dir, folder)
     before = sorted(path.name for path in folder.iterdir())
-    assert main(["run", CI_CORRIDOR, "--out", str(folder), "--max-frames", "2", "--no-record",
-                 "--methods", "ecc", "--quiet"]) == 2
+    assert main([*command, "--out", str(folder)]) == 2
     err = capsys.readouterr().err.strip()
     assert "holds a recorded sequence" in err and "\n" not in err
     assert sorted(path.name for path in folder.iterdir()) == before
