@@ -519,7 +519,7 @@ class Scoring:
 
         self.scenario, self.methods = scenario, methods
         self.folder = RunFolder(out_dir)
-        self.final_dir, self.out_dir = self.folder.final_dir, self.folder.out_dir
+        self.out_dir = self.folder.out_dir
         self.recording_path = self.out_dir / RECORDING_RRD if record else None
         self.scenario_dict = scenario.to_dict()
         self.meta: dict[str, Any] = {
@@ -622,10 +622,7 @@ class Scoring:
         try:
             return self.write(final=True)
         finally:
-            self._settle()
-
-    def _settle(self) -> None:
-        self.folder.settle(finished=self.status in (COMPLETE, FELL))
+            self.folder.settle(finished=self.status in (COMPLETE, FELL))
 
 
 class RunFolder:
