@@ -152,6 +152,10 @@ def trajectory_from_run(frames_csv: str | Path,
                                          "writes it (lower case)")
                 try:
                     index = int(row["frame_index"])
+                except (TypeError, ValueError):
+                    raise FileValueError(where, "frame_index", f"is {row['frame_index']!r}",
+                                         "a whole number") from None
+                try:
                     values = [float(row[name]) for name in columns[2:]] if status == OK else ()
                     if not all(map(math.isfinite, values)):
                         raise ValueError("a truth that is not finite")

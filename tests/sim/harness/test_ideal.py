@@ -99,6 +99,15 @@ def test_a_truth_that_is_not_finite_is_refused_by_line(tmp_path, value):
         trajectory_from_run(path)
 
 
+@pytest.mark.parametrize("value", ["1.5", "", "one"])
+def test_a_frame_index_that_is_not_a_whole_number_is_refused_by_line(tmp_path, value):
+    path = tmp_path / "frames.csv"
+    path.write_text("frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px\n"
+                    f"0,ok,0,0,0\n{value},ok,0,1,0\n")
+    with pytest.raises(FileValueError, match=f"frames.csv:3: frame_index: is '{value}'.*whole"):
+        trajectory_from_run(path)
+
+
 def test_disparity_png_round_trip_is_exact(tmp_path):
     image = depth_to_disparity(make_depth_scene(3))
     cv2.imwrite(str(tmp_path / "d.png"), image)
