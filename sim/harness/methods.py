@@ -143,8 +143,11 @@ def _load(name: str) -> Any:
         try:
             with _as_it_was():
                 target = importlib.import_module(module_name)
-        # A plugin's own import error (or a sys.exit() on import) is the user's to read.
-        except (Exception, SystemExit) as error:
+        # A plugin's own import error (a sys.exit() or another BaseException on import too)
+        # is the user's to read; Ctrl-C still stops the command.
+        except BaseException as error:
+            if stops_the_job(error):
+                raise
             raise MethodError(name, f"cannot import module {module_name} "
                                     f"({_one_line(error)})") from None
         for part in attribute.split("."):
@@ -161,7 +164,9 @@ def _load(name: str) -> Any:
     try:
         with _as_it_was():
             return entry_point.load()
-    except (Exception, SystemExit) as error:
+    except BaseException as error:
+        if stops_the_job(error):
+            raise
         raise MethodError(name, f"entry point {entry_point.value}"
                                 f"{_distribution_text(entry_point)} cannot be loaded "
                                 f"({_one_line(error)})") from None

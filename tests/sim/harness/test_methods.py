@@ -140,6 +140,8 @@ def test_a_built_in_name_is_built_by_stabilizer_as_before(frames, name):
 @pytest.mark.parametrize("name, problem", [
     ("no_such_method", "not a built-in method, not an installed entry point"),
     ("no_such_package.module:Name", "cannot import module no_such_package.module"),
+    ("tests.sim.harness.plugin_raises_on_import:f",
+     "(ImportTimeFailure: this module refuses to load)"),
     (f"{HELPERS}:Missing", "has no attribute Missing"),
     (f"{HELPERS}:NOT_CALLABLE", "float object is not callable"),
     (f"{HELPERS}:NoEstimate", "has no estimate(current) method"),
