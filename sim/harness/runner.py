@@ -714,6 +714,7 @@ def record(config: RecordConfig) -> dict:
                     "exact_depth_unit_m": EXACT_DEPTH_UNIT_M,
                     "reference_policy": scenario.evaluation.reference,
                     "provenance": provenance()})
+                writer.start()
                 for item in source:
                     frame = item.frame
                     reference = references.reference_for(frame, item.gait_cycle)
@@ -734,9 +735,14 @@ def record(config: RecordConfig) -> dict:
             ended, message = INTERRUPTED, interrupt_reason(interrupt)
         finally:
             bar.close()
-        if writer is None:  # interrupted before the first frame: nothing to keep
+        if writer is None or not writer.started:  # the folder is as it was: nothing to keep
             raise KeyboardInterrupt(message)
-        return writer.close(ended, message, fall, sim_time_s=source.sim_time_s)
+        try:
+            return writer.close(ended, message, fall, sim_time_s=source.sim_time_s)
+        except KeyboardInterrupt as interrupt:
+            # A stop during the final write: the frames written still form a sequence.
+            return writer.close(INTERRUPTED, interrupt_reason(interrupt), fall,
+                                sim_time_s=source.sim_time_s)
 
 
 def _progress_bar(total: int, name: str, enabled: bool):

@@ -222,13 +222,14 @@ def check_recording_folder(out_dir: str | Path) -> None:
 
 
 class SequenceWriter:
-    """Writes a sequence folder frame by frame; ``close`` writes the tables and sequence.json.
+    """Writes a sequence folder frame by frame: ``start``, ``add`` each frame, then ``close``
+    writes the tables and sequence.json.
 
-    sequence.json says "incomplete" from the start until ``close``, so a folder whose writer
+    sequence.json says "incomplete" from ``start`` until ``close``, so a folder whose writer
     was killed is refused by ``load_sequence``. A sequence already in the folder is replaced:
-    its frame images go first, so that a shorter recording leaves none of them behind (other
-    files stay); a folder holding such files but no sequence is refused
-    (:func:`check_recording_folder`).
+    ``start`` removes its frame images, so that a shorter recording leaves none of them behind
+    (other files stay); a folder holding such files but no sequence is refused
+    (:func:`check_recording_folder`). ``started`` says whether the folder has been touched.
     """
 
     def __init__(self, out_dir: str | Path, header: Mapping[str, Any]):
@@ -236,12 +237,21 @@ class SequenceWriter:
         self.out_dir = Path(out_dir)
         self.header = dict(header)
         self.rows: list[TruthRow] = []
+        self.started = False
+
+    def start(self) -> None:
+        """Mark the folder incomplete, then remove an earlier sequence's frame images."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.started = True
         self._write_json(INCOMPLETE, "", None)  # first: a sequence being replaced is refused
         for folder in (DEPTH_DIR, EXACT_DIR):
             (self.out_dir / folder).mkdir(parents=True, exist_ok=True)
-            for stale in (self.out_dir / folder).glob("[0-9]" * 6 + ".png"):
-                stale.unlink()
+            self._remove_frame_images(folder, beyond=-1)
+
+    def _remove_frame_images(self, folder: str, beyond: int) -> None:
+        for path in (self.out_dir / folder).glob("[0-9]" * 6 + ".png"):
+            if int(path.stem) > beyond:
+                path.unlink()
 
     def add(self, encoded: EncodedFrame, row: TruthRow) -> None:
         """Store one frame's images and its truth row."""
@@ -265,10 +275,12 @@ class SequenceWriter:
         simulated time; return sequence.json's content."""
         if ended not in ENDINGS:
             raise ValueError(f"ended must be one of {', '.join(ENDINGS)}; got {ended!r}")
-        # A stop between a frame's images and its row leaves images of a frame the sequence
-        # does not hold: the frames are 0 to len(rows) - 1, each with both images.
+        # A stop between a frame's images and its row, or while ``start`` removed an earlier
+        # sequence's images, leaves images of frames the sequence does not hold: the frames
+        # are 0 to len(rows) - 1, each with both images.
         for folder in (DEPTH_DIR, EXACT_DIR):
-            (self.out_dir / folder / frame_file(len(self.rows))).unlink(missing_ok=True)
+            (self.out_dir / folder).mkdir(parents=True, exist_ok=True)
+            self._remove_frame_images(folder, beyond=len(self.rows) - 1)
         lines = [",".join(TRUTH_COLUMNS)] + [",".join(row.cells()) for row in self.rows]
         write_text_atomic(self.out_dir / TRUTH_CSV, "\n".join(lines) + "\n")
         write_text_atomic(self.out_dir / GROUNDTRUTH_TXT,

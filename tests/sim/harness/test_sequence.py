@@ -11,7 +11,8 @@ import pytest
 from scenarios import SCENARIOS_DIR
 from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, record
 from sim.harness.scenario import load_scenario
-from sim.harness.sequence import FORMAT, TRUTH_COLUMNS, load_sequence
+from sim.harness.interrupts import Interrupted
+from sim.harness.sequence import FORMAT, TRUTH_COLUMNS, SequenceWriter, load_sequence
 from sim.harness.validation import FileValueError
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
@@ -205,6 +206,64 @@ def test_a_stop_between_a_frames_two_images_leaves_no_image_of_a_frame_not_held(
     for images in ("depth", "exact"):
         assert sorted(path.name for path in (tmp_path / "seq" / images).iterdir()) == [
             "000000.png", "000001.png", "000002.png"]
+
+
+def test_a_stop_during_the_final_write_keeps_every_frame_as_an_interrupted_sequence(
+        tmp_path, monkeypatch):
+    import sim.harness.sequence
+
+    real = sim.harness.sequence.write_text_atomic
+    stops = []
+
+    def stop_once_at_truth_csv(path, text):
+        if path.name == "truth.csv" and not stops:
+            stops.append(path)
+            raise Interrupted("SIGTERM")
+        return real(path, text)
+
+    monkeypatch.setattr(sim.harness.sequence, "write_text_atomic", stop_once_at_truth_csv)
+    header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "seq"),
+                                 max_frames=N_FRAMES))
+    assert stops and header["ended"] == "interrupted"
+    assert header["message"] == "interrupted by SIGTERM"
+    sequence = load_sequence(tmp_path / "seq")
+    assert sequence.n_frames == N_FRAMES and sequence.ended == "interrupted"
+
+
+def test_a_stop_while_an_earlier_sequence_is_removed_leaves_a_readable_empty_one(
+        sequence_dir, tmp_path, monkeypatch):
+    folder = tmp_path / "seq"
+    shutil.copytree(sequence_dir, folder)
+    real, calls = SequenceWriter._remove_frame_images, []
+
+    def stop_after_some_images(self, images, beyond):
+        calls.append(images)
+        if len(calls) == 1:
+            (self.out_dir / images / "000000.png").unlink()  # one removed, the others not yet
+            raise Interrupted("SIGTERM")
+        return real(self, images, beyond)
+
+    monkeypatch.setattr(SequenceWriter, "_remove_frame_images", stop_after_some_images)
+    header = record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(folder), max_frames=2))
+    assert header["ended"] == "interrupted" and header["frames"] == 0
+    assert load_sequence(folder).n_frames == 0
+    for images in ("depth", "exact"):
+        assert list((folder / images).iterdir()) == []
+
+
+def test_a_stop_before_the_recording_starts_leaves_an_earlier_sequence_as_it_was(
+        sequence_dir, tmp_path, monkeypatch):
+    folder = tmp_path / "seq"
+    shutil.copytree(sequence_dir, folder)
+    before = {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
+
+    def stopped(self):
+        raise Interrupted("SIGTERM")
+
+    monkeypatch.setattr(SequenceWriter, "start", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(folder), max_frames=2))
+    assert {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()} == before
 
 
 def test_a_shorter_recording_replaces_a_sequence_without_leaving_its_frames(sequence_dir,
