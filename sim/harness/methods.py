@@ -42,7 +42,7 @@ from stabilizer.verification import VerificationParams, shared_verifier
 
 #: Entry-point group under which installed distributions register methods.
 ENTRY_POINT_GROUP = "egostab.stabilizers"
-#: ``package.module:Name`` (the attribute may be dotted, as in ``module:Class.factory``).
+#: ``package.module:Name`` (the attribute may be dotted, as in ``module:Outer.Estimator``).
 IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
 #: The accepted forms, for messages.
 ACCEPTED_FORMS = (f"a built-in method ({', '.join(available_methods())}), an entry point of "
@@ -276,9 +276,9 @@ def as_motion(result: Any) -> Motion:
         diagnostics = plain_diagnostics(result.diagnostics)
         if not result.ok:
             if not (isinstance(result.status, str) and result.status):
-                return Motion.failed("wrong_type:status", status=repr(result.status),
+                return Motion.failed("wrong_type:status", status=_short_repr(result.status),
                                      message="a failure's status must be non-empty text")
-            return Motion.failed(result.status, **diagnostics)
+            return Motion.failed(encodable_text(str(result.status)), **diagnostics)
         values = result.as_tuple()
     elif (isinstance(result, (tuple, list)) and len(result) == 3
           or isinstance(result, np.ndarray) and result.shape == (3,)):
@@ -293,7 +293,7 @@ def as_motion(result: Any) -> Motion:
     try:
         floats = [float(value) for value in values]
     except OverflowError:  # an integer beyond any float
-        return Motion.failed("nan", values=[str(value) for value in values])
+        return Motion.failed("nan", values=[_number_text(value) for value in values])
     if not all(math.isfinite(value) for value in floats):
         return Motion.failed("nan", values=floats)
     return Motion(*floats, diagnostics=diagnostics)
@@ -301,36 +301,84 @@ def as_motion(result: Any) -> Motion:
 
 #: Diagnostics keys the recording draws for the built-in methods (segmentation, ellipses).
 RECORDING_KEYS = ("labels", "ellipses")
+#: The key under which the harness names the diagnostics it left out.
+DROPPED_KEY = "dropped_diagnostics"
+#: Bounds of a plain diagnostic value: list and tuple nesting, items in one list or tuple, and
+#: bits of an integer. Beyond them a value is left out: one failed frame's line in
+#: failures.jsonl stays small (a million-item list per frame made 157 MB for 20 frames, rewritten
+#: at every checkpoint), and every integer can be written as JSON text (Python refuses integers
+#: of more than 4300 digits).
+MAX_DIAGNOSTIC_DEPTH = 8
+MAX_DIAGNOSTIC_ITEMS = 1000
+MAX_DIAGNOSTIC_INT_BITS = 1024
+
+
+def _short_repr(value: Any, most: int = 200) -> str:
+    """``repr(value)``, cut to ``most`` characters; its type's name if it has none."""
+    try:
+        text = repr(value)
+    except Exception:  # a repr that raises, or an integer of more than 4300 digits
+        return f"a {type(value).__name__}"
+    return encodable_text(text if len(text) <= most else text[:most] + "...")
+
+
+def _number_text(value: numbers.Real) -> float | str:
+    """``value`` as a float, or, for an integer beyond any float, what it is in a few words."""
+    try:
+        return float(value)
+    except OverflowError:
+        return f"an integer of {abs(int(value)).bit_length()} bits"
 
 
 def plain_diagnostics(diagnostics: dict) -> dict:
     """The entries of a plugin's diagnostics that every part of the harness can carry (worker
     processes pickle them, metrics and recordings write them): text keys with None, bool,
-    numbers (numpy's as Python's), text, or lists and tuples of these, except the keys the
-    recording draws for the built-in methods (:data:`RECORDING_KEYS`). The names of the
+    numbers (numpy's as Python's), text, or lists and tuples of these (a namedtuple as a plain
+    tuple), within the bounds above, except the keys the recording draws for the built-in
+    methods (:data:`RECORDING_KEYS`) and the harness's own :data:`DROPPED_KEY`. Text that UTF-8
+    cannot encode (lone surrogates) is kept with those characters escaped. The names of the
     entries left out are kept as ``dropped_diagnostics``."""
     kept, dropped = {}, []
     for key, value in diagnostics.items():
-        plain = _plain(value) if isinstance(key, str) and key not in RECORDING_KEYS else _NOT_PLAIN
+        plain = (_plain(value) if isinstance(key, str)
+                 and key not in (*RECORDING_KEYS, DROPPED_KEY) else _NOT_PLAIN)
         if plain is _NOT_PLAIN:
-            dropped.append(str(key))
+            dropped.append(encodable_text(str(key)))
         else:
-            kept[key] = plain
+            kept[encodable_text(key)] = plain
     if dropped:
-        kept["dropped_diagnostics"] = dropped
+        kept[DROPPED_KEY] = dropped
     return kept
+
+
+def encodable_text(text: str) -> str:
+    """``text`` with the characters UTF-8 cannot encode (lone surrogates, as ``os.fsdecode``
+    makes of undecodable bytes) written as backslash escapes."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+    return text
 
 
 _NOT_PLAIN = object()
 
 
-def _plain(value: Any) -> Any:
+def _plain(value: Any, depth: int = 0) -> Any:
     """``value`` as plain Python data, or ``_NOT_PLAIN``."""
     if isinstance(value, np.generic):
         value = value.item()
-    if value is None or isinstance(value, (bool, int, float, str)):
+    if value is None or isinstance(value, (bool, float)):
         return value
+    if isinstance(value, int):
+        return int(value) if abs(value).bit_length() <= MAX_DIAGNOSTIC_INT_BITS else _NOT_PLAIN
+    if isinstance(value, str):
+        return encodable_text(str(value))
     if isinstance(value, (list, tuple)):
-        items = [_plain(item) for item in value]
-        return _NOT_PLAIN if any(item is _NOT_PLAIN for item in items) else type(value)(items)
+        if depth >= MAX_DIAGNOSTIC_DEPTH or len(value) > MAX_DIAGNOSTIC_ITEMS:
+            return _NOT_PLAIN
+        items = [_plain(item, depth + 1) for item in value]
+        if any(item is _NOT_PLAIN for item in items):
+            return _NOT_PLAIN
+        return items if isinstance(value, list) else tuple(items)
     return _NOT_PLAIN

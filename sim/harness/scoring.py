@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from sim.harness.ground_truth import GroundTruth
-from sim.harness.methods import RECORDING_KEYS, plain_diagnostics
+from sim.harness.methods import DROPPED_KEY, RECORDING_KEYS, plain_diagnostics
 from stabilizer.motion import OK, Motion, wrap_angle_deg
 
 #: The three displacements of Table I and their units.
@@ -121,9 +121,14 @@ def failure_entry(*, frame_index: int, method: str, estimate: Motion) -> dict:
     plugin's exception message, the motion the trust check rejected); the images and drawings
     only the recording shows are left out."""
     shown = {key: value for key, value in estimate.diagnostics.items()
-             if key not in RECORDING_KEYS and not isinstance(value, np.ndarray)}
+             if key not in (*RECORDING_KEYS, DROPPED_KEY) and not isinstance(value, np.ndarray)}
+    diagnostics = plain_diagnostics(shown)
+    # A plugin's diagnostics were made plain already; the names left out then stay named.
+    dropped = [*estimate.diagnostics.get(DROPPED_KEY, ()), *diagnostics.pop(DROPPED_KEY, ())]
+    if dropped:
+        diagnostics[DROPPED_KEY] = dropped
     return {"frame_index": int(frame_index), "method": str(method), "status": estimate.status,
-            "diagnostics": plain_diagnostics(shown)}
+            "diagnostics": diagnostics}
 
 
 def _float(value: float | None) -> float:

@@ -123,6 +123,16 @@ def huge_integer(reference: np.ndarray, current: np.ndarray) -> tuple:
     return (10**400, 0, 0)
 
 
+def huger_integer(reference: np.ndarray, current: np.ndarray) -> tuple:
+    """An integer of more than the 4300 digits Python converts to text."""
+    return (0, 10**5000, 0)
+
+
+def unwritable_failure(reference: np.ndarray, current: np.ndarray) -> Motion:
+    """A failure whose status and diagnostics no JSON or UTF-8 file can take as they are."""
+    return Motion.failed("bad\ud800name", big=10**5000, path="\udcff.png", count=3)
+
+
 def nan_motion(reference: np.ndarray, current: np.ndarray) -> Motion:
     return Motion(math.nan, 0.0, 0.0)
 

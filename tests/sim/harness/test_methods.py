@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import csv
 import json
 import math
@@ -77,6 +78,7 @@ def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
     ("exits", "exception:SystemExit"),
     ("raises_its_own_base_exception", "exception:OwnBaseException"),
     ("huge_integer", "nan"),
+    ("huger_integer", "nan"),
     ("list_diagnostics", "wrong_type:diagnostics"),
     ("ExitsOnReference", "exception:SystemExit"),
     ("reported_failure", "no_structure"),
@@ -107,6 +109,31 @@ def test_a_methods_diagnostics_keep_plain_data_only(frames):
     assert motion.diagnostics == {"n": 4, "pair": (1.5, "a"),
                                   "dropped_diagnostics": ["callback", "labels"]}
     assert type(motion.diagnostics["n"]) is int
+
+
+def test_diagnostics_beyond_plain_data_are_named_not_taken_for_the_methods_failure():
+    point = collections.namedtuple("Point", "x y")
+    looped = [1]
+    looped.append(looped)
+    motion = as_motion(Motion(1.0, 2.0, 3.0, diagnostics={
+        "point": point(1, 2), "looped": looped, "long": list(range(1001)),
+        "fits": list(range(1000)), "big": 2**1025, "dropped_diagnostics": "the plugin's own",
+        "text": "x\udcff"}))
+    assert motion.ok
+    assert motion.diagnostics["point"] == (1, 2) and type(motion.diagnostics["point"]) is tuple
+    assert motion.diagnostics["fits"] == list(range(1000))
+    assert motion.diagnostics["text"] == "x\\udcff"
+    assert motion.diagnostics["dropped_diagnostics"] == ["looped", "long", "big",
+                                                         "dropped_diagnostics"]
+
+
+def test_a_failure_no_file_can_take_as_it_is_is_kept_escaped_and_named(frames):
+    motion = scored(f"{HELPERS}:unwritable_failure", frames)
+    assert motion.status == "bad\\ud800name"
+    assert motion.diagnostics == {"path": "\\udcff.png", "count": 3,
+                                  "dropped_diagnostics": ["big"]}
+    assert as_motion(plugin_methods.huger_integer(*frames)).diagnostics["values"] == [
+        0.0, "an integer of 16610 bits", 0.0]
 
 
 def test_as_motion_keeps_a_good_motion_and_its_diagnostics():

@@ -57,7 +57,8 @@ def test_run_writes_every_output_and_they_agree(tmp_path):
 
 def test_each_failed_estimate_keeps_its_diagnostics_in_failures_jsonl(tmp_path):
     helpers = "tests.sim.harness.plugin_methods"
-    methods = ("ecc", f"{helpers}:raising", f"{helpers}:fixed_tuple")
+    methods = ("ecc", f"{helpers}:raising", f"{helpers}:fixed_tuple",
+               f"{helpers}:unwritable_failure")
     folders = [_short_run(tmp_path, f"w{workers}", methods=methods, max_frames=3,
                           workers=workers)[1] for workers in (1, 2)]
     lines = (folders[0] / "failures.jsonl").read_text().splitlines()
@@ -74,6 +75,11 @@ def test_each_failed_estimate_keeps_its_diagnostics_in_failures_jsonl(tmp_path):
     rejected = next(f for f in failures if f["method"] == methods[2])
     assert rejected["frame_index"] == 0 and rejected["status"] == "unverified"
     assert rejected["diagnostics"]["unverified_motion"] == list(plugin_methods.FIXED)
+    # Text UTF-8 cannot take is written escaped, an integer JSON cannot take is named.
+    unwritable = [f for f in failures if f["method"] == methods[3]]
+    assert len(unwritable) == 3 and {f["status"] for f in unwritable} == {"bad\\ud800name"}
+    assert unwritable[0]["diagnostics"] == {"path": "\\udcff.png", "count": 3,
+                                            "dropped_diagnostics": ["big"]}
     listed = json.loads((folders[0] / "metrics.json").read_text())["files"]
     assert listed["failed estimates' diagnostics"] == "failures.jsonl"
 
