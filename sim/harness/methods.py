@@ -177,8 +177,17 @@ def _distribution_text(entry_point: importlib.metadata.EntryPoint) -> str:
     return "" if dist is None else f" from distribution {dist.name} {dist.version}"
 
 
+def exception_text(error: BaseException) -> str:
+    """What ``error`` says (``str(error)``), as text any file takes; a word about it when its
+    own ``__str__`` fails."""
+    try:
+        return encodable_text(str(error))
+    except Exception as unreadable:
+        return f"(its message could not be read: {type(unreadable).__name__})"
+
+
 def _one_line(error: BaseException) -> str:
-    text = str(error).strip().splitlines()
+    text = exception_text(error).strip().splitlines()
     return f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
 
 
@@ -222,7 +231,8 @@ class PluginStabilizer:
                 if stops_the_job(error):
                     raise
                 self._failure = Motion.failed(f"exception:{type(error).__name__}",
-                                              message=str(error), stage="reference")
+                                              message=exception_text(error),
+                                              stage="reference")
         else:
             self._estimate = functools.partial(target, _read_only_copy(self.reference), **params)
 

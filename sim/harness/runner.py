@@ -29,7 +29,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, stops_the_job
-from sim.harness.methods import Estimator, check_methods, method_factory
+from sim.harness.methods import Estimator, check_methods, exception_text, method_factory
 from sim.harness.threads import worker_count
 from stabilizer import compensate
 from stabilizer.motion import Motion
@@ -163,7 +163,8 @@ def timed_estimate(stabilizer: Estimator, current) -> tuple[Motion, float]:
     except BaseException as error:
         if stops_the_job(error):
             raise
-        motion = Motion.failed(f"exception:{type(error).__name__}", message=str(error))
+        motion = Motion.failed(f"exception:{type(error).__name__}",
+                               message=exception_text(error))
     return motion, 1e3 * (time.perf_counter() - start)
 
 

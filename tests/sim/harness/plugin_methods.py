@@ -52,6 +52,16 @@ def raising(reference: np.ndarray, current: np.ndarray) -> Motion:
     raise ValueError("this method always fails")
 
 
+class UnreadableError(Exception):
+    def __str__(self) -> str:
+        raise RuntimeError("no message")
+
+
+def raises_unreadable(reference: np.ndarray, current: np.ndarray) -> Motion:
+    """Raises an exception whose message cannot be read."""
+    raise UnreadableError
+
+
 def exits(reference: np.ndarray, current: np.ndarray) -> Motion:
     sys.exit("a library that ends the program")
 

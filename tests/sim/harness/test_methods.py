@@ -127,6 +127,12 @@ def test_diagnostics_beyond_plain_data_are_named_not_taken_for_the_methods_failu
                                                          "dropped_diagnostics"]
 
 
+def test_an_exception_whose_message_cannot_be_read_still_fails_only_its_frame(frames):
+    motion = scored(f"{HELPERS}:raises_unreadable", frames)
+    assert motion.status == "exception:UnreadableError"
+    assert motion.diagnostics["message"] == "(its message could not be read: RuntimeError)"
+
+
 def test_a_failure_no_file_can_take_as_it_is_is_kept_escaped_and_named(frames):
     motion = scored(f"{HELPERS}:unwritable_failure", frames)
     assert motion.status == "bad\\ud800name"
