@@ -37,7 +37,7 @@ import numpy as np
 from sim.harness.interrupts import stops_the_job
 from stabilizer import Stabilizer, available_methods
 from stabilizer.inputs import as_disparity, check_same_shape
-from stabilizer.motion import Motion
+from stabilizer.motion import OK, Motion
 from stabilizer.verification import VerificationParams, shared_verifier
 
 #: Entry-point group under which installed distributions register methods.
@@ -285,10 +285,12 @@ def as_motion(result: Any) -> Motion:
                                          f"{type(result.diagnostics).__name__}")
         diagnostics = plain_diagnostics(result.diagnostics)
         if not result.ok:
-            if not (isinstance(result.status, str) and result.status):
+            if not (isinstance(result.status, str) and result.status.strip()
+                    and result.status.strip().lower() != OK):
                 return Motion.failed("wrong_type:status", status=_short_repr(result.status),
-                                     message="a failure's status must be non-empty text")
-            return Motion.failed(encodable_text(str(result.status)), **diagnostics)
+                                     message="a failure's status must be non-empty text other "
+                                             "than 'ok' in any case")
+            return Motion.failed(status_text(result.status), **diagnostics)
         values = result.as_tuple()
     elif (isinstance(result, (tuple, list)) and len(result) == 3
           or isinstance(result, np.ndarray) and result.shape == (3,)):
@@ -306,9 +308,19 @@ def as_motion(result: Any) -> Motion:
         return Motion.failed("nan", values=[_number_text(value) for value in values])
     if not all(math.isfinite(value) for value in floats):
         return Motion.failed("nan", values=floats)
+    if max(abs(value) for value in floats) > MAX_ESTIMATE:
+        return Motion.failed(OUT_OF_RANGE, values=floats,
+                             message=f"|angle_deg|, |dx| and |dy| must be at most "
+                                     f"{MAX_ESTIMATE:g}")
     return Motion(*floats, diagnostics=diagnostics)
 
 
+#: Largest |angle_deg|, |dx| (px), |dy| (px) of an estimate that is scored: far beyond any
+#: motion in view, small enough that no error statistic overflows (a plugin's or a file's 1e308
+#: meaning "no value" turned every mean and variance into n/a or a 300-digit number).
+MAX_ESTIMATE = 1e6
+#: Status of an estimate beyond MAX_ESTIMATE.
+OUT_OF_RANGE = "out_of_range"
 #: Diagnostics keys the recording draws for the built-in methods (segmentation, ellipses).
 RECORDING_KEYS = ("labels", "ellipses")
 #: The key under which the harness names the diagnostics it left out.
@@ -359,6 +371,16 @@ def plain_diagnostics(diagnostics: dict) -> dict:
     if dropped:
         kept[DROPPED_KEY] = dropped
     return kept
+
+
+def status_text(status: str) -> str:
+    """A failure's status as one line of text: ``encodable_text``, with control characters
+    (line breaks, tabs) written as escapes, so that frames.csv keeps one line per row."""
+    text = encodable_text(str(status))
+    if text.isprintable():
+        return text
+    return "".join(char if char.isprintable() else char.encode("unicode_escape").decode("ascii")
+                   for char in text)
 
 
 def encodable_text(text: str) -> str:

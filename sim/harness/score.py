@@ -223,6 +223,7 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     import csv
 
     from sim.harness.validation import FileValueError
+    from sim.harness.methods import MAX_ESTIMATE, status_text
     from stabilizer.motion import OK, Motion
 
     motions: dict[int, Motion] = {}
@@ -267,6 +268,13 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                 continue  # a row of empty cells (`,,,,`), as spreadsheets export below the data
             # The line the row ends on: blank lines are skipped, a quoted field may span lines.
             where = f"{path}:{reader.line_num}"
+            # Cells beyond the header's (csv puts them under None): an unquoted decimal comma
+            # shifts the values; empty ones (a trailing comma) are harmless.
+            if any(value.strip() for value in cells.get(None) or ()):
+                raise FileValueError(where, "row", f"has {len(header) + len(cells[None])} "
+                                     f"cells, the header {len(header)}",
+                                     "one cell per column of the header (a number with a "
+                                     "decimal comma must be quoted, or written with a point)")
 
             def number(name: str) -> float:
                 text = (cells.get(name) or "").strip()
@@ -291,13 +299,15 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
             status = (cells.get("status") or "").strip() or OK
             if status.lower() == OK:  # "OK" and "Ok" too: no failure status reads "ok"
                 values = tuple(number(name) for name in ESTIMATE_COLUMNS[1:])
-                bad = [n for n, v in zip(ESTIMATE_COLUMNS[1:], values) if not math.isfinite(v)]
-                if bad:
-                    raise FileValueError(where, bad[0], "is not finite",
-                                         "a finite number when the status is ok")
+                for name, value in zip(ESTIMATE_COLUMNS[1:], values):
+                    if not abs(value) <= MAX_ESTIMATE:  # NaN too
+                        raise FileValueError(
+                            where, name, "is not finite" if not math.isfinite(value)
+                            else f"is {value:g}", f"a finite number within +-{MAX_ESTIMATE:g} "
+                            "when the status is ok (for no estimate, a failure status)")
                 motions[frame] = Motion(*values)
             else:
-                motions[frame] = Motion.failed(status)
+                motions[frame] = Motion.failed(status_text(status))
     return motions
 
 
@@ -317,9 +327,13 @@ def parse_estimates_argument(text: str) -> tuple[str, str]:
 def estimates_by_name(pairs: Sequence[tuple[str, str]] | None) -> dict[str, str]:
     """The ``--estimates`` arguments, (name, path) pairs, as name -> path; a ValueError when a
     name is given twice."""
-    estimates = dict(pairs or ())
-    if len(estimates) != len(pairs or ()):
-        raise ValueError("--estimates: a name given twice; accepted: each NAME once")
+    estimates: dict[str, str] = {}
+    for name, path in pairs or ():
+        if name in estimates:
+            raise ValueError(f"--estimates: the name {name!r} given twice ({estimates[name]} "
+                             f"and {path}); accepted: each NAME once (NAME=FILE.csv names a "
+                             "file other than by its stem)")
+        estimates[name] = path
     return estimates
 
 

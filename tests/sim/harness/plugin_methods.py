@@ -138,6 +138,11 @@ def huger_integer(reference: np.ndarray, current: np.ndarray) -> tuple:
     return (0, 10**5000, 0)
 
 
+def far_out(reference: np.ndarray, current: np.ndarray) -> tuple:
+    """1e308, a "no value" of C programs, as an estimate."""
+    return (0.0, 1e308, 0.0)
+
+
 def unwritable_failure(reference: np.ndarray, current: np.ndarray) -> Motion:
     """A failure whose status and diagnostics no JSON or UTF-8 file can take as they are."""
     return Motion.failed("bad\ud800name", big=10**5000, path="\udcff.png", count=3)

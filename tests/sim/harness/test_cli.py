@@ -246,7 +246,7 @@ def test_a_method_given_twice_is_refused(capsys):
      "--estimates", "a=x/{sequence}.csv", "--estimates", "a=y/{sequence}.csv"]])
 def test_an_estimates_name_given_twice_is_refused(command, tmp_path, capsys):
     assert main([*command, "--out", str(tmp_path / "out")]) == 2
-    assert "a name given twice" in _one_line_error(capsys, command[0])
+    assert "the name 'a' given twice (" in _one_line_error(capsys, command[0])
     assert not (tmp_path / "out").exists()
 
 

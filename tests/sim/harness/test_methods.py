@@ -79,6 +79,7 @@ def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
     ("raises_its_own_base_exception", "exception:OwnBaseException"),
     ("huge_integer", "nan"),
     ("huger_integer", "nan"),
+    ("far_out", "out_of_range"),
     ("list_diagnostics", "wrong_type:diagnostics"),
     ("ExitsOnReference", "exception:SystemExit"),
     ("reported_failure", "no_structure"),
@@ -125,6 +126,14 @@ def test_diagnostics_beyond_plain_data_are_named_not_taken_for_the_methods_failu
     assert motion.diagnostics["text"] == "x\\udcff"
     assert motion.diagnostics["dropped_diagnostics"] == ["looped", "long", "big",
                                                          "dropped_diagnostics"]
+
+
+@pytest.mark.parametrize("status, recorded", [
+    ("lost\ntrack", "lost\\ntrack"), ("a\tb", "a\\tb"), ("nicht_gefunden_ä", "nicht_gefunden_ä"),
+    ("OK", "wrong_type:status"), (" ok ", "wrong_type:status"), ("   ", "wrong_type:status"),
+])
+def test_a_failures_status_is_one_line_of_text_other_than_ok(status, recorded):
+    assert as_motion(Motion(math.nan, math.nan, math.nan, status)).status == recorded
 
 
 def test_an_exception_whose_message_cannot_be_read_still_fails_only_its_frame(frames):

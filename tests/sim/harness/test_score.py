@@ -452,16 +452,44 @@ def test_a_stop_signal_during_an_estimate_stops_a_score_started_with_sigint_igno
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's overflows on the way
-def test_estimates_near_the_float_range_are_scored_and_plotted(folders, tmp_path):
-    # Any finite number is a valid estimate; drawn, it once broke the plots' axis ticks.
-    path = tmp_path / "huge.csv"
-    path.write_text("frame,angle_deg,dx,dy\n" + "".join(
-        f"{frame},0,{1.7e308 if frame == 3 else 0.0},0\n" for frame in range(N_FRAMES)))
-    out = tmp_path / "out"
-    assert main(["score", str(folders / "sequence"), "--estimates", f"huge={path}", "--out",
-                 str(out), "--quiet", "--no-record"]) == 0
-    assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
-    assert (out / "estimates_huge.png").stat().st_size and (out / "error_histograms.png").exists()
+def test_estimates_far_out_are_scored_and_plotted_up_to_the_bound_and_refused_beyond(
+        folders, tmp_path, capsys):
+    # Drawn, huge estimates once broke the plots' axis ticks; 1e308, a "no value" of C
+    # programs, turned every mean and variance into n/a or a 300-digit number.
+    for value, status in ((1e6, 0), (-1e6, 0), (1.7e308, 2), (1000001, 2)):
+        path = tmp_path / "far.csv"
+        path.write_text("frame,angle_deg,dx,dy\n" + "".join(
+            f"{frame},0,{value if frame == 3 else 0.0},0\n" for frame in range(N_FRAMES)))
+        out = tmp_path / f"out{value}"
+        assert main(["score", str(folders / "sequence"), "--estimates", f"far={path}", "--out",
+                     str(out), "--quiet", "--no-record"]) == status
+        err = capsys.readouterr().err.strip()
+        if status:
+            assert err == (f"egostab score: error: {path}:5: dx: is {value:g}; allowed: a finite "
+                           "number within +-1e+06 when the status is ok (for no estimate, a "
+                           "failure status)")
+            assert not out.exists()
+        else:
+            assert json.loads((out / "metrics.json").read_text())["status"] == "complete"
+            assert (out / "estimates_far.png").stat().st_size
+            assert (out / "error_histograms.png").exists()
+
+
+def test_a_row_with_more_cells_than_the_header_is_refused_unless_they_are_empty(folders,
+                                                                                tmp_path,
+                                                                                capsys):
+    path = tmp_path / "extra.csv"
+    rows = [f"{frame},0,0,0" for frame in range(N_FRAMES)]
+    path.write_text("frame,angle_deg,dx,dy\n" + "\n".join(rows[:2] + ["2,0,1,5,0"] + rows[3:]))
+    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
+                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"egostab score: error: {path}:4: row: has 5 cells, the header 4; allowed: one cell per "
+        "column of the header (a number with a decimal comma must be quoted, or written with a "
+        "point)")
+    path.write_text("frame,angle_deg,dx,dy\n" + "".join(f"{row},,\n" for row in rows))
+    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
+                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
 
 
 def test_estimates_read_from_a_pipe_are_scored(folders, tmp_path):
