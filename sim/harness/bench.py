@@ -373,6 +373,21 @@ def render_fps(n_frames: int = 300, motion_blur: bool = False) -> float:
     return fps
 
 
+def finished(document: dict) -> dict:
+    """A timed job's metrics.json (``run``, ``score``) or sequence.json (``record``) content,
+    when it ran to its end; the stop that cut it short, raised again, otherwise: ``run`` and
+    ``record`` end on Ctrl-C or SIGTERM by returning, and the timing of a cut-short job is no
+    figure to publish."""
+    from sim.harness.interrupts import Interrupted
+    from sim.harness.runner import INTERRUPTED
+
+    status = document.get("status", document.get("ended"))
+    if status == INTERRUPTED:
+        message = document.get("message", document.get("run", {}).get("message", ""))
+        raise Interrupted.named_in(message)
+    return document
+
+
 def rescoring(n_frames: int | None = None) -> dict[str, float]:
     """Recording the default scenario, and re-scoring the sequence: speed and parallelism.
 
@@ -391,15 +406,16 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as scratch:
         sequence = Path(scratch) / "sequence"
         started = time.perf_counter()
-        sim_time_s = record(RecordConfig(DEFAULT_SCENARIO, str(sequence),
-                                         max_frames=n_frames))["sim_time_s"]
+        sim_time_s = finished(record(RecordConfig(DEFAULT_SCENARIO, str(sequence),
+                                                  max_frames=n_frames)))["sim_time_s"]
         record_rtf = sim_time_s / (time.perf_counter() - started)
         sequence_mb = sum(path.stat().st_size for path in sequence.rglob("*")
                           if path.is_file()) / 1e6
 
         def seconds(name: str, clock=time.perf_counter, **options) -> float:
             started = clock()
-            score(ScoreConfig(str(sequence), str(Path(scratch) / name), record=False, **options))
+            finished(score(ScoreConfig(str(sequence), str(Path(scratch) / name), record=False,
+                                       **options)))
             return clock() - started
 
         first, again = (seconds(f"t2fuzzy{run}", methods=("t2fuzzy",)) for run in (1, 2))
@@ -465,8 +481,9 @@ def run_benchmarks(quick: bool = False, out_path=None) -> dict:
             ("every method, recording on", None, True, 1),
             ("t2fuzzy alone, no recording", ("t2fuzzy",), False, None)):
         with tempfile.TemporaryDirectory() as scratch:
-            metrics = run(RunConfig(DEFAULT_SCENARIO, scratch, methods=methods, record=record,
-                                    max_frames=pipeline_frames, workers=workers))
+            metrics = finished(run(RunConfig(DEFAULT_SCENARIO, scratch, methods=methods,
+                                             record=record, max_frames=pipeline_frames,
+                                             workers=workers)))
         used = metrics["run"]["workers"]
         label += (f", default workers (`--workers {used}` here)" if workers is None
                   else f", `--workers {workers}`")

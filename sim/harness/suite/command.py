@@ -6,7 +6,7 @@ import argparse
 import functools
 from pathlib import Path
 
-from sim.harness.validation import POSITIVE_INTEGER
+from sim.harness.validation import POSITIVE_INTEGER, path_option
 
 
 def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
@@ -16,7 +16,7 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
         "suite", help="run a suite file: many sequences, means with 95%% bootstrap intervals")
     suite.add_argument("suite_file", type=Path,
                        help="a suite TOML file (see scenarios/suites/ and docs/suites.md)")
-    suite.add_argument("--out", type=Path, default=None,
+    suite.add_argument("--out", type=path_option, default=None,
                        help="suite folder (default: results/suites/<name>; resumable: complete "
                             "runs are skipped)")
     suite.add_argument("--workers", type=POSITIVE_INTEGER, default=None,

@@ -1,6 +1,7 @@
 """The t2fuzzy corpus benchmark of sim.harness.bench (its synthetic part: the walks render)."""
 
 import numpy as np
+import pytest
 
 from sim.harness import bench
 from stabilizer.testing import CORPUS_GENERATORS
@@ -29,3 +30,22 @@ def test_time_method_uses_the_clock_it_is_given():
     scenes = [(np.zeros((144, 176), np.uint8), [np.zeros((144, 176), np.uint8)] * 3)]
     # Each estimate spans one tick of this clock: 1 ms per frame whatever the work took.
     assert bench.time_method("t2fuzzy", scenes, clock=lambda: next(ticks) * 1e-3) == 1.0
+
+
+def test_a_timed_job_cut_short_stops_the_benchmark_with_its_signal(monkeypatch):
+    # run and record end on Ctrl-C or SIGTERM by returning: the benchmark went on and
+    # published the cut-short job's timing.
+    import sim.harness.runner
+    from sim.harness.interrupts import Interrupted
+
+    def recorded_until_sigterm(config):
+        return {"ended": "interrupted", "message": "interrupted by SIGTERM", "sim_time_s": 0.9}
+
+    monkeypatch.setattr(sim.harness.runner, "record", recorded_until_sigterm)
+    with pytest.raises(Interrupted) as stop:
+        bench.rescoring(2)
+    assert stop.value.signal_name == "SIGTERM"
+    assert bench.finished({"status": "fell", "run": {"message": "the robot fell"}})
+    with pytest.raises(KeyboardInterrupt):
+        bench.finished({"status": "interrupted",
+                        "run": {"message": "interrupted by the user (Ctrl-C)"}})

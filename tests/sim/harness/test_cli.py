@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -309,7 +310,14 @@ def test_all_methods_may_be_written_with_spaces_or_a_trailing_comma():
 def test_an_empty_output_path_is_refused_not_taken_for_the_working_directory(tmp_path,
                                                                             monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    for command in (["run"], ["record"], ["sweep", "s.toml"], ["aggregate", "r"]):
+    commands = (["run"], ["record"], ["sweep", "s.toml"], ["aggregate", "r"], ["score", "s"],
+                ["ideal", "corridor"], ["suite", "s.toml"], ["bench"], ["gate"])
+    subcommands = next(action for action in build_parser()._actions
+                       if isinstance(action, argparse._SubParsersAction))
+    with_out = {name for name, parser in subcommands.choices.items()
+                if any("--out" in action.option_strings for action in parser._actions)}
+    assert with_out == {command[0] for command in commands}
+    for command in commands:
         with pytest.raises(SystemExit) as exited:
             main([*command, "--out", ""])
         assert exited.value.code == 2
