@@ -366,7 +366,13 @@ def build_parser() -> argparse.ArgumentParser:
                        help="also write the figures as Markdown (e.g. results/bench.md)")
     bench.set_defaults(handler=_cmd_bench)
 
-    gate = commands.add_parser("gate", help="CI regression gate against results/baseline.json")
+    gate = commands.add_parser(
+        "gate", help="CI regression gate against results/baseline.json",
+        description="Run the CI scenarios and compare their figures with the baseline. Exit "
+                    "status: 0, every figure within its tolerance; 1, a figure moved or a CI "
+                    "run did not complete (the robot fell), or the gate itself failed (with a "
+                    "traceback); 2, bad input (options, a missing or malformed baseline), "
+                    "refused before anything runs; 130, stopped (Ctrl-C, SIGTERM, SIGHUP).")
     gate.add_argument("--baseline", type=path_option,
                       default=DEFAULT_RESULTS / "baseline.json",
                       help="the baseline to compare with (default: results/baseline.json, "

@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 from pathlib import Path
 
 from scenarios import SCENARIOS_DIR
@@ -38,6 +39,11 @@ TRUTH_TOLERANCES = {"angle_mean_deg": 0.03, "dx_mean_px": 0.05, "dy_mean_px": 0.
 BASELINE_FORMAT = "egostab-baseline/2"
 
 
+class RunNotComplete(Exception):
+    """A CI run that ended before its last frame (the robot fell): a regression, not bad
+    input; the message says how it ended."""
+
+
 def tolerances_of(entry: str) -> dict[str, float]:
     """The figures and tolerances of a scenario's entry: a method, or :data:`TRUTH`."""
     return TRUTH_TOLERANCES if entry == TRUTH else METHOD_TOLERANCES
@@ -51,8 +57,7 @@ def gate_metrics(metrics: dict, rows: list[dict]) -> dict[str, dict[str, float]]
     if metrics["status"] == "interrupted":  # the gate was stopped: a stop, not bad input
         raise Interrupted.named_in(metrics["run"].get("message", ""))
     if metrics["status"] != "complete":
-        raise ValueError(f"run {metrics['scenario'].get('name')} did not complete: "
-                         f"{metrics['status']} ({metrics['run'].get('message', '')})")
+        raise RunNotComplete(f"{metrics['status']} ({metrics['run'].get('message', '')})")
 
     def mean(values: list[float]) -> float:
         return math.fsum(values) / len(values) if values else math.nan
@@ -100,17 +105,22 @@ def expected_coverage() -> dict[str, tuple[str, ...]]:
             for path in ci_scenario_paths()}
 
 
-def run_ci_scenarios(out_dir: Path) -> dict[str, dict[str, dict[str, float]]]:
-    """Run every scenario of CI_SCENARIOS_DIR (no recording); scenario -> entry -> figures."""
+def run_ci_scenarios(out_dir: Path) -> tuple[dict[str, dict[str, dict[str, float]]],
+                                              dict[str, str]]:
+    """Run every scenario of CI_SCENARIOS_DIR (no recording): scenario -> entry -> figures of
+    the runs that completed, and scenario -> how it ended for those that did not."""
     from sim.harness.runner import RunConfig, run
 
-    results = {}
+    results, not_complete = {}, {}
     for path in ci_scenario_paths():
         run_dir = out_dir / path.stem
         metrics = run(RunConfig(scenario=str(path), out_dir=str(run_dir), record=False))
         with open(run_dir / "frames.csv", newline="", encoding="utf-8") as handle:
-            results[path.stem] = gate_metrics(metrics, list(csv.DictReader(handle)))
-    return results
+            try:
+                results[path.stem] = gate_metrics(metrics, list(csv.DictReader(handle)))
+            except RunNotComplete as ended:
+                not_complete[path.stem] = str(ended)
+    return results, not_complete
 
 
 #: Verdicts of a baseline that no longer matches the CI set: both fail the gate, because a
@@ -211,12 +221,14 @@ def read_baseline(path: Path) -> dict:
                          "repository's root, or give --baseline PATH), or a new one made on "
                          "purpose with `egostab gate --update-baseline`")
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{path}: not valid JSON ({error}); expected a baseline written by "
-                         "`egostab gate --update-baseline`") from None
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise ValueError(f"{path}: cannot be read ({error})") from None
+    try:
+        document = json.loads(text)
+    except ValueError as error:  # JSONDecodeError, or a number of more than 4300 digits
+        raise ValueError(f"{path}: not valid JSON ({error}); expected a baseline written by "
+                         "`egostab gate --update-baseline`") from None
     if not isinstance(document, dict) or document.get("format") != BASELINE_FORMAT:
         raise ValueError(f"{path}: not a baseline of format {BASELINE_FORMAT!r} (expected a JSON "
                          f"object with \"format\": {BASELINE_FORMAT!r}; an older format is "
@@ -237,10 +249,16 @@ def read_baseline(path: Path) -> dict:
                                  f"{', '.join(sorted(expected))}")
             for metric, value in figures.items():
                 if value is not None and (isinstance(value, bool)
-                                          or not isinstance(value, (int, float))):
-                    raise ValueError(f"{path}: {key}.{metric} is {value!r}; accepted: a number "
-                                     "or null")
+                                          or not isinstance(value, (int, float))
+                                          or abs(value) > sys.float_info.max):
+                    raise ValueError(f"{path}: {key}.{metric} is {_shown(value)}; accepted: "
+                                     "a number within the float range, or null")
     return scenarios
+
+
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:40] + "..."
 
 
 def check_coverage(baseline: dict, expected: dict[str, tuple[str, ...]], path: Path) -> None:
@@ -274,15 +292,20 @@ def run_gate(baseline_path: Path, update: bool = False,
              out_dir: Path = Path("results/gate")) -> int:
     """Run the CI scenarios; compare with (or, with ``update``, rewrite) the baseline.
 
-    Returns the exit code: 0 when every figure is within its tolerance, 1 otherwise.
+    Returns the exit code: 0 when every figure is within its tolerance, 1 otherwise (a figure
+    moved, or a CI run did not complete: the robot fell).
     """
     baseline = None
     if not update:
         baseline = read_baseline(Path(baseline_path))
         check_coverage(baseline, expected_coverage(), Path(baseline_path))
     prepare_output_dir(Path(out_dir))  # after the baseline: a refused gate leaves no folder
-    results = run_ci_scenarios(Path(out_dir))
+    results, not_complete = run_ci_scenarios(Path(out_dir))
+    ended = "; ".join(f"{scenario} {how}" for scenario, how in not_complete.items())
     if update:
+        if not_complete:
+            print(f"baseline not written: CI run(s) did not complete: {ended}")
+            return 1
         write_baseline(Path(baseline_path), results)
         print(f"baseline written to {baseline_path} "
               f"({sum(len(m) for m in results.values())} entries: each scenario's methods and "
@@ -291,6 +314,9 @@ def run_gate(baseline_path: Path, update: bool = False,
     rows = compare(results, baseline)
     moved = [row for row in rows if row["verdict"] != WITHIN]
     print(format_rows(rows))
+    if not_complete:  # their figures are all "in baseline, not produced"
+        print(f"\ngate failed: CI run(s) did not complete: {ended}")
+        return 1
     if moved:
         worse = sum(row["verdict"].startswith("REGRESSED") for row in moved)
         better = sum(row["verdict"] == BETTER for row in moved)

@@ -97,18 +97,18 @@ def test_run_gate_exit_codes_and_baseline_update(tmp_path, monkeypatch, capsys):
     with pytest.raises(ValueError, match="--update-baseline"):
         gate.run_gate(path)
     monkeypatch.setattr(gate, "expected_coverage", lambda: {"ci_a": ("t2fuzzy", gate.TRUTH)})
-    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: BASE)
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (BASE, {}))
     assert gate.run_gate(path, update=True) == 0
     document = json.loads(path.read_text())
     assert document["format"] == gate.BASELINE_FORMAT and document["scenarios"] == BASE
     assert gate.run_gate(path) == 0
     assert "gate passed" in capsys.readouterr().out
-    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: _with(failed_frames=9))
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (_with(failed_frames=9), {}))
     assert gate.run_gate(path) == 1
     out = capsys.readouterr().out
     assert "gate failed: 1 figure(s)" in out
     assert "| failed_frames | 3.0000 | 9.0000 | +6.0000 |" in out
-    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: _with(failed_frames=0))
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (_with(failed_frames=0), {}))
     assert gate.run_gate(path) == 1
     assert "(0 worse, 1 better" in capsys.readouterr().out
 
@@ -116,8 +116,28 @@ def test_run_gate_exit_codes_and_baseline_update(tmp_path, monkeypatch, capsys):
 def test_an_incomplete_run_cannot_be_gated():
     metrics = {"status": "fell", "scenario": {"name": "ci_a"}, "run": {"message": "fell at 1 s"},
                "summary": {"run": {}}}
-    with pytest.raises(ValueError, match="did not complete"):
+    with pytest.raises(gate.RunNotComplete, match=r"^fell \(fell at 1 s\)$"):
         gate.gate_metrics(metrics, [])
+
+
+def test_a_ci_run_that_falls_fails_the_gate_as_a_regression_not_as_bad_input(tmp_path,
+                                                                            monkeypatch,
+                                                                            capsys):
+    path = tmp_path / "baseline.json"
+    monkeypatch.setattr(gate, "expected_coverage", lambda: {"ci_a": ("t2fuzzy", gate.TRUTH)})
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (BASE, {}))
+    assert gate.run_gate(path, update=True) == 0
+    written = path.read_bytes()
+    fell = "fell (the robot fell at 0.41 s (torso_tilt))"
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: ({}, {"ci_a": fell}))
+    assert gate.run_gate(path) == 1
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith(f"gate failed: CI run(s) did not complete: ci_a {fell}")
+    assert gate.NOT_RUN in out
+    assert gate.run_gate(path, update=True) == 1
+    assert capsys.readouterr().out.strip() == (
+        f"baseline not written: CI run(s) did not complete: ci_a {fell}")
+    assert path.read_bytes() == written
 
 
 @pytest.mark.parametrize("message, signal_name", [
@@ -178,13 +198,26 @@ def test_a_malformed_baseline_is_refused_by_name_before_anything_runs(tmp_path, 
     assert str(path) in str(raised.value)
 
 
-def test_a_value_of_the_wrong_type_is_named(tmp_path, monkeypatch):
+@pytest.mark.parametrize("value, shown", [
+    ("0.4", "'0.4'"), (10**400, "1" + "0" * 39 + "..."), (float("inf"), "inf")])
+def test_a_value_of_the_wrong_type_is_named(tmp_path, monkeypatch, value, shown):
+    # A number beyond the float range passed and crashed the comparison after the runs.
     path = tmp_path / "baseline.json"
-    figures = dict(BASE["ci_a"]["t2fuzzy"], y_mean_px="0.4")
+    figures = dict(BASE["ci_a"]["t2fuzzy"], y_mean_px=value)
     path.write_text(json.dumps({"format": gate.BASELINE_FORMAT,
                                 "scenarios": {"ci_a": {"t2fuzzy": figures}}}))
     monkeypatch.setattr(gate, "run_ci_scenarios", _must_not_run)
-    with pytest.raises(ValueError, match=r"scenarios\.ci_a\.t2fuzzy\.y_mean_px is '0.4'"):
+    with pytest.raises(ValueError) as raised:
+        gate.run_gate(path)
+    assert f"scenarios.ci_a.t2fuzzy.y_mean_px is {shown}; accepted: a number" in str(
+        raised.value)
+
+
+def test_a_number_json_cannot_read_is_named_as_not_valid_json(tmp_path, monkeypatch):
+    path = tmp_path / "baseline.json"
+    path.write_text('{"format": "egostab-baseline/2", "scenarios": {"ci_a": ' + "9" * 5000 + "}}")
+    monkeypatch.setattr(gate, "run_ci_scenarios", _must_not_run)
+    with pytest.raises(ValueError, match="not valid JSON"):
         gate.run_gate(path)
 
 
