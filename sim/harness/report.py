@@ -551,6 +551,8 @@ def _compact_table(runs: list[Path]) -> str:
         label = str(folder) if names.count(name) > 1 else name
         if document["status"] != "complete":  # an unfinished run does not pass for a whole one
             label += f" ({document['status']})"
+        if document["run"].get("max_frames") is not None:  # nor one cut short on purpose
+            label += f" (--max-frames: {document['run'].get('frames_done')} frames)"
         if label in cells:
             raise ValueError(f"run folder {folder} given twice; accepted: each run once")
         cells[label] = {}

@@ -223,12 +223,15 @@ def test_the_compact_table_has_a_column_per_method_and_the_readme_cell_layout(ru
 def test_the_compact_table_keeps_runs_of_one_name_apart_and_says_which_did_not_finish(
         run, tmp_path):
     run_dir, _, records, _ = run
-    for folder, status in (("a", "complete"), ("b", "interrupted")):
+    for folder, status, max_frames in (("a", "complete", None), ("b", "interrupted", None),
+                                       ("c", "complete", 10)):
         write_run_outputs(tmp_path / folder / "walk", scenario={}, records=records[:20],
-                          summary=summarize(records[:20]), meta={}, status=status, plots=False)
-    first, second = tmp_path / "a" / "walk", tmp_path / "b" / "walk"
-    rows = aggregate_runs([first, second], compact=True).splitlines()[2:]
-    assert [row.split(" | ")[0] for row in rows] == [f"| {first}", f"| {second} (interrupted)"]
+                          summary=summarize(records[:20]), status=status, plots=False,
+                          meta={"max_frames": max_frames, "frames_done": 10})
+    first, second, third = (tmp_path / folder / "walk" for folder in "abc")
+    rows = aggregate_runs([first, second, third], compact=True).splitlines()[2:]
+    assert [row.split(" | ")[0] for row in rows] == [
+        f"| {first}", f"| {second} (interrupted)", f"| {third} (--max-frames: 10 frames)"]
     with pytest.raises(ValueError, match="given twice"):
         aggregate_runs([first, first], compact=True)
 
