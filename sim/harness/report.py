@@ -465,7 +465,7 @@ def read_metrics(run: str | Path) -> dict:
         path = path / METRICS_JSON
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as error:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"cannot read run metrics {path}: {error}; expected a run folder "
                          f"holding {METRICS_JSON} (written by a run)") from error
     if not isinstance(document, dict) or document.get("format") != METRICS_FORMAT:
@@ -568,7 +568,12 @@ def _compact_table(runs: list[Path]) -> str:
 
 def _long_table(runs: list[Path]) -> str:
     rows = []
+    seen = set()
     for run in runs:
+        folder = (run if run.is_dir() else run.parent).resolve()
+        if folder in seen:  # it would count twice
+            raise ValueError(f"run folder {run} given twice; accepted: each run once")
+        seen.add(folder)
         document = read_metrics(run)
         head = (run.name if run.is_dir() else run.parent.name,
                 str((document.get("scenario") or {}).get("name", "")), document["status"])

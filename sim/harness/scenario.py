@@ -398,6 +398,11 @@ def _check_pushes(raw_pushes, duration_s, source) -> tuple[Push, ...]:
         if not push.t < duration_s:
             raise ScenarioError(source, f"pushes[{i}].t", f"{push.t!r} is not before "
                                 f"duration_s={duration_s}", "a time >= 0 s, before duration_s")
+        # A push still on at the end would deliver only part of the impulse it records.
+        if push.t + push.duration_s > duration_s:
+            raise ScenarioError(source, f"pushes[{i}].duration_s",
+                                f"{push.duration_s!r} s from t={push.t!r} s runs past "
+                                f"duration_s={duration_s}", "a push that ends by duration_s")
         pushes.append(push)
     return tuple(pushes)
 

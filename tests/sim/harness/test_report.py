@@ -232,8 +232,13 @@ def test_the_compact_table_keeps_runs_of_one_name_apart_and_says_which_did_not_f
     rows = aggregate_runs([first, second, third], compact=True).splitlines()[2:]
     assert [row.split(" | ")[0] for row in rows] == [
         f"| {first}", f"| {second} (interrupted)", f"| {third} (--max-frames: 10 frames)"]
-    with pytest.raises(ValueError, match="given twice"):
-        aggregate_runs([first, first], compact=True)
+    for compact in (True, False):
+        with pytest.raises(ValueError, match="given twice"):
+            aggregate_runs([first, first], compact=compact)
+    (tmp_path / "binary").mkdir()
+    (tmp_path / "binary" / "metrics.json").write_bytes(b"\x89\xaa\xff not text")
+    with pytest.raises(ValueError, match="cannot read run metrics .*binary/metrics.json"):
+        aggregate_runs([tmp_path / "binary"])
 
 
 def test_score_rows_read_each_methods_figures_back_from_metrics(run, tmp_path):

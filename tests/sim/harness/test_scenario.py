@@ -190,6 +190,8 @@ frame_stride = 3
     ('duration_s = 5.0\n[[pushes]]\nt = 5.0\nimpulse_ns = [0.0, 1.0, 0.0]\n', "pushes[0].t",
      "before duration_s"),
     ('[[pushes]]\nt = -1.0\n', "pushes[0].t", "a time >= 0 s"),
+    ('duration_s = 5.0\n[[pushes]]\nt = 4.95\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 0.1\n',
+     "pushes[0].duration_s", "a push that ends by duration_s"),
     ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 0.001\n',
      "pushes[0].duration_s", "whole number of physics steps"),
     ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 0.101\n',
