@@ -464,8 +464,8 @@ def _check_sensor(scenario: Scenario, source: str) -> None:
                             f"fps < {1.0 / params.integration_time_s:.1f}")
     if math.floor(scenario.duration_s * sensor.fps) < 1:
         raise ScenarioError(source, "duration_s", f"{scenario.duration_s} s holds no frame at "
-                            f"{sensor.fps} frames/s", f"at least one frame period, "
-                            f"{1.0 / sensor.fps:.4f} s")
+                            f"{sensor.fps} frames/s", f"at least one frame period (1 / "
+                            f"sensor.fps = {1.0 / sensor.fps:.9g} s)")
 
 
 def _check_methods(scenario: Scenario, source: str) -> None:

@@ -113,6 +113,7 @@ frame_stride = 3
     ('scene = "lab"\nduration_s = "long"\n', "duration_s", "duration_s <="),
     ('scene = "lab"\nduration_s = -1.0\n', "duration_s", "0 < duration_s"),
     ('scene = "lab"\nduration_s = 0.001\n', "duration_s", "at least one frame period"),
+    ('duration_s = 0.0333\n', "duration_s", "(1 / sensor.fps = 0.0333333333 s)"),
     ('scene = "lab"\n[sensor.overrides]\nquantization_bits = 33\n', "sensor.overrides",
      "0 (off) to 32"),
     ('scene = "lab"\n[sensor.overrides]\nnoise_sigma_ref_m = 1e300\n', "sensor.overrides",
