@@ -253,6 +253,12 @@ def read_baseline(path: Path) -> dict:
                                           or abs(value) > sys.float_info.max):
                     raise ValueError(f"{path}: {key}.{metric} is {_shown(value)}; accepted: "
                                      "a number within the float range, or null")
+    # The tolerances are the gate's (METHOD_TOLERANCES, TRUTH_TOLERANCES); the baseline records
+    # those it was written with, so that an edit there is refused rather than silently ignored.
+    if document.get("tolerances") != {"methods": METHOD_TOLERANCES, TRUTH: TRUTH_TOLERANCES}:
+        raise ValueError(f"{path}: its 'tolerances' are not the ones the gate applies (those of "
+                         "sim/harness/gate.py, which the baseline records); accepted: a baseline "
+                         "written by `egostab gate --update-baseline` with these tolerances")
     return scenarios
 
 

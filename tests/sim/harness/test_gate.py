@@ -213,6 +213,20 @@ def test_a_value_of_the_wrong_type_is_named(tmp_path, monkeypatch, value, shown)
         raised.value)
 
 
+def test_a_baseline_whose_tolerances_were_edited_is_refused(tmp_path, monkeypatch):
+    # They are the gate's: an edit in the baseline was silently ignored.
+    path = tmp_path / "baseline.json"
+    monkeypatch.setattr(gate, "expected_coverage", lambda: {"ci_a": ("t2fuzzy", gate.TRUTH)})
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (BASE, {}))
+    assert gate.run_gate(path, update=True) == 0
+    document = json.loads(path.read_text())
+    document["tolerances"]["methods"]["x_mean_px"] = 1.0
+    path.write_text(json.dumps(document))
+    monkeypatch.setattr(gate, "run_ci_scenarios", _must_not_run)
+    with pytest.raises(ValueError, match="'tolerances' are not the ones the gate applies"):
+        gate.run_gate(path)
+
+
 def test_a_number_json_cannot_read_is_named_as_not_valid_json(tmp_path, monkeypatch):
     path = tmp_path / "baseline.json"
     path.write_text('{"format": "egostab-baseline/2", "scenarios": {"ci_a": ' + "9" * 5000 + "}}")
