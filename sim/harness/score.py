@@ -222,8 +222,8 @@ def _shortened(text: str, limit: int = 40) -> str:
 def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
     import csv
 
-    from sim.harness.validation import FileValueError
     from sim.harness.methods import MAX_ESTIMATE, status_text
+    from sim.harness.validation import FileValueError
     from stabilizer.motion import OK, Motion
 
     motions: dict[int, Motion] = {}
