@@ -69,6 +69,7 @@ from stabilizer.fncc import (
     TemplateMatch,
     parabolic_vertex,
 )
+from stabilizer.inputs import check_flag, check_integer, check_number
 from stabilizer.motion import Motion, image_centre, motion_matrix
 from stabilizer.verification import VerificationParams, edge_image, structure_correlation
 
@@ -215,28 +216,21 @@ class Refinements:
     astray_climb_recovery: bool = True
 
     def __post_init__(self):
-        if not self.search_step_deg > 0:
-            raise ValueError(f"search_step_deg must be > 0; got {self.search_step_deg}")
+        for name in ("rotation_search", "search_without_estimates", "fail_unconverged",
+                     "resolve_disagreement", "final_overlap_climb", "astray_climb_recovery"):
+            check_flag(name, getattr(self, name))
         for name in ("search_max_steps", "search_candidates", "common_disc_passes",
                      "extra_disc_passes", "wide_search_px", "large_template_border_px"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0; got {getattr(self, name)}")
-        if self.max_shift_disagreement_px < 0:
-            raise ValueError(f"max_shift_disagreement_px must be >= 0; "
-                             f"got {self.max_shift_disagreement_px}")
-        if not (self.resolve_margin >= 0 and self.edge_tie_margin >= 0):
-            raise ValueError(f"resolve_margin and edge_tie_margin must be >= 0; got "
-                             f"{self.resolve_margin}, {self.edge_tie_margin}")
-        if not self.max_rotation_deg > 0:
-            raise ValueError(f"max_rotation_deg must be > 0; got {self.max_rotation_deg}")
-        if not (self.clip_sigmas >= 0 and self.clip_min_spread > 0):
-            raise ValueError(f"clip_sigmas must be >= 0 and clip_min_spread > 0; got "
-                             f"{self.clip_sigmas}, {self.clip_min_spread}")
-        if not self.doubtful_offset_deg >= 0:
-            raise ValueError(f"doubtful_offset_deg must be >= 0 (math.inf: off); got "
-                             f"{self.doubtful_offset_deg}")
-        if not 0.0 < self.wide_min_overlap <= 1.0:
-            raise ValueError(f"wide_min_overlap must be in (0, 1]; got {self.wide_min_overlap}")
+            check_integer(name, getattr(self, name), 0)
+        for name in ("search_step_deg", "max_rotation_deg", "clip_min_spread"):
+            check_number(name, getattr(self, name), 0.0, open_low=True)
+        for name in ("extra_pass_trigger_deg", "max_shift_disagreement_px", "resolve_margin",
+                     "clip_sigmas"):
+            check_number(name, getattr(self, name), 0.0)
+        check_number("wide_min_overlap", self.wide_min_overlap, 0.0, 1.0, open_low=True)
+        for name in ("edge_tie_margin", "doubtful_offset_deg"):
+            if getattr(self, name) != math.inf:  # math.inf: never (off)
+                check_number(f"{name} (or math.inf: off)", getattr(self, name), 0.0)
 
     @classmethod
     def off(cls) -> Refinements:

@@ -168,7 +168,12 @@ def test_off_is_the_paper_pipeline():
                                     {"wide_search_px": -1}, {"wide_min_overlap": 0.0},
                                     {"max_rotation_deg": 0.0}, {"resolve_margin": -0.1},
                                     {"edge_tie_margin": -0.1}, {"clip_sigmas": -1.0},
-                                    {"clip_min_spread": 0.0}])
+                                    {"clip_min_spread": 0.0}, {"rotation_search": "no"},
+                                    {"common_disc_passes": 2.5}, {"search_max_steps": math.inf},
+                                    {"max_shift_disagreement_px": math.nan},
+                                    {"extra_pass_trigger_deg": "5"}, {"wide_search_px": True},
+                                    {"clip_sigmas": math.inf}, {"edge_tie_margin": -math.inf},
+                                    {"doubtful_offset_deg": math.nan}])
 def test_bad_refinement_parameters_are_value_errors(params):
     with pytest.raises(ValueError, match=next(iter(params))):
         Refinements(**params)
