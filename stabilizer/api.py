@@ -33,6 +33,7 @@ Why these sizes: docs/method.md, section 9, and docs/peers.md, "Image sizes".
 from __future__ import annotations
 
 import importlib
+import inspect
 from dataclasses import replace
 from typing import Any
 
@@ -110,6 +111,12 @@ class Stabilizer:
         if verification is not None and not isinstance(verification, VerificationParams):
             raise TypeError(f"verification must be a VerificationParams "
                              f"(stabilizer.verification) or None; got {verification!r}")
+        accepted = [name for name in inspect.signature(estimator_class).parameters
+                    if name != "reference"]
+        unknown = [name for name in params if name not in accepted]
+        if unknown:
+            raise TypeError(f"{method} has no parameter {unknown[0]!r}; accepted: "
+                            f"{', '.join(accepted)}")
         params = {**_METHODS[method][1], **params}
         self.method = method
         # A copy: a caller may fill the same buffer with its next frame.

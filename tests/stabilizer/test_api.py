@@ -41,9 +41,13 @@ def test_unknown_method():
         stabilizer.Stabilizer(REFERENCE, ["sift"])
 
 
-def test_unknown_parameter_is_rejected():
-    with pytest.raises(TypeError):
-        stabilizer.estimate(REFERENCE, REFERENCE, not_a_parameter=1)
+@pytest.mark.parametrize("method", stabilizer.available_methods())
+def test_an_unknown_parameter_is_named_with_the_accepted_ones(method):
+    with pytest.raises(TypeError) as error:
+        stabilizer.estimate(REFERENCE, REFERENCE, method=method, not_a_parameter=1)
+    assert str(error.value).startswith(f"{method} has no parameter 'not_a_parameter'; "
+                                       "accepted: ")
+    assert "median_ksize" in str(error.value) or "refinements" in str(error.value)
 
 
 @pytest.mark.parametrize("method, params, named", [
