@@ -195,7 +195,7 @@ def load_trajectory(trajectory: str, n_frames: int | None = None,
     """The motions of ``trajectory``: the paper cycle of ``n_frames`` frames (None: 30), or a
     walking run's frames.csv (:func:`trajectory_from_run`; ``n_frames`` is refused with it)."""
     if trajectory == PAPER_CYCLE:
-        return paper_cycle(30 if n_frames is None else n_frames)
+        return paper_cycle() if n_frames is None else paper_cycle(n_frames)
     if Path(trajectory).suffix.lower() == ".csv" and Path(trajectory).is_file():
         if n_frames is not None:
             raise ValueError(f"--frames {n_frames} with the trajectory {trajectory}: a "

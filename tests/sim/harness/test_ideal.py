@@ -29,6 +29,13 @@ from stabilizer import depth_to_disparity
 from stabilizer.testing import make_depth_scene
 
 
+def _frames_csv(path, rows: str, method_column: bool = False):
+    """A trajectory frames.csv of ``rows`` (frame_index,truth_status,angle,dx,dy[,method])."""
+    header = "frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px"
+    path.write_text(header + (",method" if method_column else "") + "\n" + rows)
+    return path
+
+
 def test_paper_cycle_has_the_papers_magnitudes():
     motions = np.array([m.as_tuple() for m in paper_cycle(60)])
     angle, dx, dy = motions.T
@@ -83,27 +90,21 @@ def test_paper_method_is_accurate_in_the_ideal_case(tmp_path):
 
 
 def test_frames_csv_without_truth_is_rejected(tmp_path):
-    path = tmp_path / "frames.csv"
-    path.write_text("frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px\n"
-                    "0,no_overlap,nan,nan,nan\n")
+    path = _frames_csv(tmp_path / "frames.csv", "0,no_overlap,nan,nan,nan\n")
     with pytest.raises(ValueError, match="no frame with a ground truth"):
         trajectory_from_run(path)
 
 
 @pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
 def test_a_truth_that_is_not_finite_is_refused_by_line(tmp_path, value):
-    path = tmp_path / "frames.csv"
-    path.write_text("frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px\n"
-                    f"0,ok,0,0,0\n1,ok,0,{value},0\n")
+    path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n1,ok,0,{value},0\n")
     with pytest.raises(FileValueError, match="frames.csv:3: row: .*not a finite number"):
         trajectory_from_run(path)
 
 
 @pytest.mark.parametrize("value", ["1.5", "", "one"])
 def test_a_frame_index_that_is_not_a_whole_number_is_refused_by_line(tmp_path, value):
-    path = tmp_path / "frames.csv"
-    path.write_text("frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px\n"
-                    f"0,ok,0,0,0\n{value},ok,0,1,0\n")
+    path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n{value},ok,0,1,0\n")
     with pytest.raises(FileValueError, match=f"frames.csv:3: frame_index: is '{value}'.*whole"):
         trajectory_from_run(path)
 
@@ -150,13 +151,6 @@ def test_ideal_options_out_of_range_are_refused(tmp_path, capsys, argv, words):
 
 
 # ------------------------------------------------------------------ interrupted experiments
-def _frames_csv(path, rows: str, method_column: bool = False):
-    """A trajectory frames.csv of ``rows`` (frame_index,truth_status,angle,dx,dy[,method])."""
-    header = "frame_index,truth_status,true_angle_deg,true_dx_px,true_dy_px"
-    path.write_text(header + (",method" if method_column else "") + "\n" + rows)
-    return path
-
-
 def _wait_for(predicate, timeout_s: float) -> None:
     deadline = time.monotonic() + timeout_s
     while not predicate():
