@@ -21,6 +21,14 @@ DEFAULT_FAR_M = 10.0
 #: Smallest side (pixels) of any frame; each method has its own, larger minimum
 #: (``stabilizer.api``, docs/method.md section 9, docs/peers.md "Image sizes").
 MIN_SIDE = 8
+#: Largest side (pixels) of a method's filter kernels (median, Gaussian, morphology) and of its
+#: margins: the methods are made for frames like the SR4000's 176 x 144, which a kernel this
+#: wide already covers; a wider one only costs time and memory (a median of side 10^6 ran for
+#: minutes, a Gaussian of sigma 10^9 asked for 8 GB).
+MAX_KERNEL_SIDE = 255
+#: Largest Gaussian scale (pixels) of a method: its kernel, 6 sigma wide, stays within
+#: :data:`MAX_KERNEL_SIDE`.
+MAX_SIGMA_PX = 40.0
 
 
 def depth_to_disparity(

@@ -36,6 +36,12 @@ import numpy as np
 
 #: Value of ``RobustAngle.fallback`` when the thresholds could not be used.
 MEDIAN_FALLBACK = "median"
+#: Widest membership function (degrees): the angle estimates of stage 4 are differences of
+#: ellipse axes, within +-90 degrees, which a wider triangle spans whole.
+MAX_BANDWIDTH_DEG = 90.0
+#: Finest histogram step (degrees): the histogram and its convolution grow as 1 / step^2 (a step
+#: of 1e-7 degrees ran for minutes); a hundredth of a degree is far below the estimates' spread.
+MIN_RESOLUTION_DEG = 0.01
 
 
 @dataclass(frozen=True)
@@ -69,10 +75,11 @@ class Type2FuzzyThreshold:
     alpha : float, optional
         Exponent of the footprint of uncertainty, in (1, 2] (eq. (6)). Default 2.
     bandwidth_deg : float, optional
-        Half-width of the triangular membership function in degrees. Default 1 (the paper
-        gives none; docs/method.md, section 5).
+        Half-width of the triangular membership function in degrees, at most
+        :data:`MAX_BANDWIDTH_DEG`. Default 1 (the paper gives none; docs/method.md, section 5).
     resolution_deg : float, optional
-        Quantisation step of the histogram of values. Default 0.1 (docs/method.md, section 5).
+        Quantisation step of the histogram of values, at least :data:`MIN_RESOLUTION_DEG` and
+        less than ``bandwidth_deg``. Default 0.1 (docs/method.md, section 5).
     min_values : int, optional
         Fewer values than this fall back to the median. Default 3.
 
@@ -89,9 +96,9 @@ class Type2FuzzyThreshold:
                  resolution_deg: float = 0.1, min_values: int = 3):
         if not (1.0 < alpha <= 2.0):
             raise ValueError(f"alpha must be in (1, 2] (paper eq. 6); got {alpha}")
-        if not (bandwidth_deg > resolution_deg > 0):
-            raise ValueError("need bandwidth_deg > resolution_deg > 0; got "
-                             f"{bandwidth_deg} and {resolution_deg}")
+        if not (MAX_BANDWIDTH_DEG >= bandwidth_deg > resolution_deg >= MIN_RESOLUTION_DEG):
+            raise ValueError(f"need {MAX_BANDWIDTH_DEG:g} >= bandwidth_deg > resolution_deg >= "
+                             f"{MIN_RESOLUTION_DEG:g}; got {bandwidth_deg} and {resolution_deg}")
         if min_values < 1:
             raise ValueError(f"min_values must be >= 1; got {min_values}")
         self.alpha = float(alpha)

@@ -82,11 +82,11 @@ from stabilizer.ellipse import (
 )
 from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.histogram_seeds import HistogramSeeds
-from stabilizer.inputs import check_flag, check_integer, check_number
+from stabilizer.inputs import MAX_KERNEL_SIDE, MAX_SIGMA_PX, check_flag, check_integer, check_number
 from stabilizer.it2fcm import IT2FCM, LabelCleaner
 from stabilizer.motion import Motion
 from stabilizer.peers.preparation import clipped, robust_value_range
-from stabilizer.t2_threshold import Type2FuzzyThreshold
+from stabilizer.t2_threshold import MAX_BANDWIDTH_DEG, MIN_RESOLUTION_DEG, Type2FuzzyThreshold
 from stabilizer.t2fuzzy_refinements import (
     Refinements,
     RotationSearch,
@@ -123,8 +123,9 @@ class SegmentationParams:
         warm_start: start the current frame's IT2-FCM from the reference's centres when its
             histogram gives as many seeds (the same scene converges in a few iterations);
             default True.
-        morph_size: side of the square of the morphological opening and closing; the paper
-            gives none. Default 3.
+        morph_size: side of the square of the morphological opening and closing, odd, at
+            most 255 (:data:`~stabilizer.inputs.MAX_KERNEL_SIDE`); the paper gives none.
+            Default 3.
         min_object_area: objects with fewer pixels after the clean-up are dropped; default 30.
     """
 
@@ -146,7 +147,7 @@ class SegmentationParams:
         check_number("fcm_tol", self.fcm_tol, 0.0, open_low=True)
         check_integer("fcm_max_iter", self.fcm_max_iter, 1)
         check_flag("warm_start", self.warm_start)
-        check_integer("morph_size", self.morph_size, 1)
+        check_integer("morph_size", self.morph_size, 1, MAX_KERNEL_SIDE)
         if self.morph_size % 2 == 0:
             raise ValueError(f"morph_size must be odd; got {self.morph_size}")
         check_integer("min_object_area", self.min_object_area, 0)
@@ -214,8 +215,10 @@ class ThresholdParams:
 
     Attributes:
         alpha: exponent of the footprint of uncertainty, in (1, 2]; paper eq. (6). Default 2.
-        bandwidth_deg: half-width of the triangular membership function; default 1 degree.
-        resolution_deg: histogram step of the angle estimates; default 0.1 degree.
+        bandwidth_deg: half-width of the triangular membership function, at most 90 degrees
+            (:data:`~stabilizer.t2_threshold.MAX_BANDWIDTH_DEG`); default 1 degree.
+        resolution_deg: histogram step of the angle estimates, at least 0.01 degree
+            (:data:`~stabilizer.t2_threshold.MIN_RESOLUTION_DEG`); default 0.1 degree.
     """
 
     alpha: float = 2.0
@@ -224,8 +227,8 @@ class ThresholdParams:
 
     def __post_init__(self):
         check_number("alpha", self.alpha, 1.0, 2.0, open_low=True)
-        check_number("bandwidth_deg", self.bandwidth_deg, 0.0, open_low=True)
-        check_number("resolution_deg", self.resolution_deg, 0.0, open_low=True)
+        check_number("bandwidth_deg", self.bandwidth_deg, 0.0, MAX_BANDWIDTH_DEG, open_low=True)
+        check_number("resolution_deg", self.resolution_deg, MIN_RESOLUTION_DEG)
 
 
 @dataclass(frozen=True)
@@ -238,7 +241,8 @@ class TranslationParams:
             quarter of the SR4000's 176-pixel width); it must leave a template of at least
             8 x 8 pixels, so with the default the frames need at least 96 pixels per side.
         ncc_sigma: Gaussian smoothing (pixels) of both frames before the correlation, which
-            makes its peak a smooth function of the motion; 0: none. Default 1.
+            makes its peak a smooth function of the motion; 0: none; at most 40
+            (:data:`~stabilizer.inputs.MAX_SIGMA_PX`). Default 1.
         min_ncc: a correlation peak below this gives ``"no_translation_estimate"``; default 0.3.
     """
 
@@ -248,7 +252,7 @@ class TranslationParams:
 
     def __post_init__(self):
         check_integer("max_shift_px", self.max_shift_px, 0)
-        check_number("ncc_sigma", self.ncc_sigma, 0.0)
+        check_number("ncc_sigma", self.ncc_sigma, 0.0, MAX_SIGMA_PX)
         check_number("min_ncc", self.min_ncc)  # above 1: no peak is accepted
 
 

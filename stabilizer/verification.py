@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from stabilizer.fncc import MaskedCorrelation, surface_peak
-from stabilizer.inputs import check_angles, check_integer, check_number
+from stabilizer.inputs import MAX_SIGMA_PX, check_angles, check_integer, check_number
 from stabilizer.motion import (
     Motion,
     image_centre,
@@ -78,7 +78,8 @@ class VerificationParams:
             invented motions (docs/method.md, section 11, "Still edges, moved depth"). 1: the
             edges alone decide.
         sigma_px: Gaussian scale (pixels) of the edge image; it sets the misalignment the check
-            tolerates, about a pixel or two. Default 2.
+            tolerates, about a pixel or two. At most 40 (:data:`~stabilizer.inputs.MAX_SIGMA_PX`).
+            Default 2.
         clip_factor: edge responses (the Laplacian of the smoothed disparity) are clipped to
             +- this many times their median magnitude, so that a few strong depth steps (near
             objects: disparity grows as 1 / depth) do not outweigh all the others. Default 5.
@@ -164,7 +165,7 @@ class VerificationParams:
         for name in ("max_offset_deg", "max_offset_px", "null_margin", "still_deg", "still_px",
                      "depth_tolerance_levels", "depth_tolerance_share", "depth_tolerance_noise"):
             check_number(name, getattr(self, name), 0.0)
-        check_number("sigma_px", self.sigma_px, 0.0, open_low=True)
+        check_number("sigma_px", self.sigma_px, 0.0, MAX_SIGMA_PX, open_low=True)
         check_number("clip_factor", self.clip_factor, 0.0, open_low=True)
         check_integer("optimum_iterations", self.optimum_iterations, 1)
         for name in ("full_resolution_offset_deg", "full_resolution_travel_deg"):

@@ -40,10 +40,14 @@ import math
 import cv2
 import numpy as np
 
-from stabilizer.inputs import check_integer, check_number
+from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
 from stabilizer.motion import Motion, motion_from_matrix, motion_matrix
 from stabilizer.peers.preparation import FramePreparation, frame_problem, peer_min_side
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
+
+#: Most pyramid levels: the largest frame side accepted (4096, ``stabilizer.api.MAX_SIDE``)
+#: halves to one pixel in 12; more levels add only 1-pixel images.
+MAX_LEVELS = 12
 
 
 class EccEstimator:
@@ -54,15 +58,15 @@ class EccEstimator:
     reference : (H, W) uint8 ndarray
         Disparity-like reference, 0 = invalid.
     median_ksize : int, optional
-        Median filter applied to both frames (0 or 1 = none). Default 5.
+        Median filter applied to both frames (0 or 1 = none; odd, at most 255). Default 5.
     levels : int, optional
-        Pyramid levels (1 = full resolution only). Default 3.
+        Pyramid levels (1 = full resolution only), at most :data:`MAX_LEVELS`. Default 3.
     iterations : int, optional
         Most ECC iterations per level. Default 50.
     epsilon : float, optional
         ECC stops when the correlation gains less than this. Default 1e-4.
     gauss_filter_size : int, optional
-        ECC's Gaussian pre-smoothing kernel (odd). Default 5.
+        ECC's Gaussian pre-smoothing kernel (odd, at most 255). Default 5.
     min_correlation : float, optional
         The search over starts ends at the first result with at least this final correlation;
         a best result below it is a failure. Default 0.9, between what correct and wrong
@@ -95,13 +99,13 @@ class EccEstimator:
                  min_correlation: float = 0.9,
                  start_angles_deg: tuple[float, ...] = START_ANGLES_DEG,
                  max_starts: int = 3, clip_sigmas: float = 1.5, clip_min_spread: float = 20.0):
-        check_integer("levels", levels, 1)
+        check_integer("levels", levels, 1, MAX_LEVELS)
         check_integer("iterations", iterations, 1)
         check_number("epsilon", epsilon, 0.0, open_low=True)
-        check_integer("gauss_filter_size", gauss_filter_size, 1)
+        check_integer("gauss_filter_size", gauss_filter_size, 1, MAX_KERNEL_SIDE)
         if gauss_filter_size % 2 == 0:
-            raise ValueError(f"gauss_filter_size must be a positive odd integer; "
-                             f"got {gauss_filter_size}")
+            raise ValueError(f"gauss_filter_size must be an odd integer from 1 to "
+                             f"{MAX_KERNEL_SIDE}; got {gauss_filter_size}")
         check_number("min_correlation", min_correlation, -1.0, 1.0)
         check_integer("max_starts", max_starts, 1)
         self.levels = levels

@@ -75,7 +75,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from stabilizer.inputs import check_integer, check_number
+from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
 from stabilizer.motion import Motion, image_centre, rotation_matrix, transform_points
 from stabilizer.peers.preparation import (
     FramePreparation,
@@ -104,7 +104,7 @@ class IcpEstimator:
         Hysteresis thresholds of ``cv2.Canny`` on the disparity image. Defaults 20 and 40 (a
         depth step of a few gray levels).
     border_margin_px : int, optional
-        Edge pixels closer than this to invalid pixels are dropped. Default 2.
+        Edge pixels closer than this to invalid pixels are dropped; at most 255. Default 2.
     max_points : int, optional
         Current-frame edge pixels used, subsampled evenly (bounds the cost of a step).
         Default 1000.
@@ -183,7 +183,7 @@ class IcpEstimator:
                              f"{', '.join(ERROR_METRICS)}")
         check_number("canny_low", canny_low, 0.0)
         check_number("canny_high", canny_high, canny_low)
-        check_integer("border_margin_px", border_margin_px, 0)
+        check_integer("border_margin_px", border_margin_px, 0, MAX_KERNEL_SIDE)
         check_integer("max_points", max_points, 2)
         check_number("max_distance_px", max_distance_px, 0.0, open_low=True)
         check_number("overlap", overlap, 0.0, 1.0, open_low=True)

@@ -16,7 +16,7 @@ import math
 import cv2
 import numpy as np
 
-from stabilizer.inputs import check_integer, check_number
+from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
 
 #: A frame needs at least this many valid (non-zero) pixels to show any scene.
 MIN_VALID_PIXELS = 64
@@ -172,11 +172,12 @@ def even_dft_size(size: int) -> int:
 
 
 def check_median_ksize(median_ksize: int) -> None:
-    """ValueError unless ``median_ksize`` is 0, 1 (no filter) or an odd size >= 3."""
-    check_integer("median_ksize", median_ksize, 0)
+    """ValueError unless ``median_ksize`` is 0, 1 (no filter) or an odd size from 3 to
+    :data:`~stabilizer.inputs.MAX_KERNEL_SIDE`."""
+    check_integer("median_ksize", median_ksize, 0, MAX_KERNEL_SIDE)
     if median_ksize > 1 and median_ksize % 2 == 0:
-        raise ValueError(f"median_ksize must be 0, 1 (no filter) or an odd integer >= 3; "
-                         f"got {median_ksize}")
+        raise ValueError(f"median_ksize must be 0, 1 (no filter) or an odd integer from 3 to "
+                         f"{MAX_KERNEL_SIDE}; got {median_ksize}")
 
 
 def denoised(image: np.ndarray, median_ksize: int) -> np.ndarray:

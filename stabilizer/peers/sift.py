@@ -27,7 +27,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from stabilizer.inputs import check_integer, check_number
+from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
 from stabilizer.motion import Motion, image_centre, transform_points
 from stabilizer.peers.preparation import (
     check_median_ksize,
@@ -58,7 +58,7 @@ class SiftEstimator:
         Fewest inliers accepted as an estimate. Default 3 (two fix a rigid motion, the third
         confirms it).
     border_margin_px : int, optional
-        Keypoints are detected only this far (px) from invalid pixels. Default 3.
+        Keypoints are detected only this far (px) from invalid pixels, at most 255. Default 3.
     contrast_threshold : float, optional
         SIFT's contrast threshold. Default 0.003, far below OpenCV's 0.04: disparity images
         have few, low-contrast corners (walls differ by a few gray levels).
@@ -95,7 +95,7 @@ class SiftEstimator:
         check_number("ratio", ratio, 0.0, 1.0, open_low=True, open_high=True)
         check_number("ransac_threshold_px", ransac_threshold_px, 0.0, open_low=True)
         check_integer("min_inliers", min_inliers, 2)  # a rigid motion needs 2 points
-        check_integer("border_margin_px", border_margin_px, 0)
+        check_integer("border_margin_px", border_margin_px, 0, MAX_KERNEL_SIDE)
         check_number("contrast_threshold", contrast_threshold, 0.0)
         check_integer("max_features", max_features, 0)  # 0: every feature
         check_integer("max_hypotheses", max_hypotheses, 1)

@@ -55,6 +55,12 @@ def test_an_unknown_parameter_is_named_with_the_accepted_ones(method):
     ("fourier_mellin", {"radius_bins": 100_000}, "radius_bins"),
     ("fourier_mellin", {"min_response": math.nan}, "min_response"),
     ("ecc", {"levels": 2.5}, "levels"),
+    # Unbounded, these ran out of memory or ran for minutes.
+    ("ecc", {"levels": 10**9}, "levels"),
+    ("ecc", {"gauss_filter_size": 10**6 + 1}, "gauss_filter_size"),
+    ("ecc", {"median_ksize": 10**6 + 1}, "median_ksize"),
+    ("icp", {"border_margin_px": 10**12}, "border_margin_px"),
+    ("sift", {"border_margin_px": 10**12}, "border_margin_px"),
     ("ecc", {"epsilon": math.nan}, "epsilon"),
     ("ecc", {"min_correlation": math.nan}, "min_correlation"),
     ("ecc", {"start_angles_deg": ()}, "start_angles_deg"),

@@ -47,7 +47,9 @@ def test_nan_values_are_ignored():
 
 @pytest.mark.parametrize("kwargs", [{"alpha": 1.0}, {"alpha": 2.5},
                                     {"bandwidth_deg": 0.05, "resolution_deg": 0.1},
-                                    {"min_values": 0}])
+                                    {"min_values": 0},
+                                    # a minutes-long histogram and convolution
+                                    {"bandwidth_deg": 1e5}, {"resolution_deg": 1e-7}])
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         Type2FuzzyThreshold(**kwargs)

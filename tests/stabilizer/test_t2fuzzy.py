@@ -14,6 +14,7 @@ from stabilizer.t2fuzzy import (
     FeatureParams,
     SegmentationParams,
     T2FuzzyEstimator,
+    ThresholdParams,
     TranslationParams,
 )
 from stabilizer.t2fuzzy_refinements import Refinements, RotationSearch
@@ -260,6 +261,9 @@ def test_odd_frames_never_crash(frame):
     (FeatureParams, {"edge_margin": 100_000}), (FeatureParams, {"wavelet_level": 10**9}),
     (FeatureParams, {"max_centre_shift": float("nan")}), (FeatureParams, {"weighted_fit": "yes"}),
     (FeatureParams, {"wavelet": 3}), (FeatureParams, {"significance": 1.0}),
+    # Unbounded, these asked for gigabytes or ran for minutes.
+    (TranslationParams, {"ncc_sigma": 1e9}), (SegmentationParams, {"morph_size": 100_001}),
+    (ThresholdParams, {"bandwidth_deg": 1e5}), (ThresholdParams, {"resolution_deg": 1e-7}),
 ])
 def test_bad_parameters_are_value_errors(group, params):
     with pytest.raises(ValueError, match=next(iter(params))):

@@ -447,6 +447,8 @@ def test_methods_of_one_reference_share_one_check_and_each_frames_measurements(m
     method's estimate is checked as a verifier of its own checks it."""
     import stabilizer.verification as verification
 
+    # Verifiers of earlier tests (of this REFERENCE, which may have measured CURRENT) go.
+    monkeypatch.setattr(verification, "_shared_verifiers", [])
     first, second = Stabilizer(REFERENCE, "ecc"), Stabilizer(REFERENCE.copy(), "sift")
     assert first._verifier is second._verifier
     stricter = VerificationParams(min_correlation=0.5)
@@ -597,6 +599,7 @@ def test_thresholds_are_parameters():
                                  # A NaN passed every comparison and switched a test off.
                                  dict(max_offset_deg=math.nan), dict(max_offset_px=math.inf),
                                  dict(sigma_px=math.inf), dict(candidate_angles_deg=5.0),
+                                 dict(sigma_px=1e9),  # a kernel of gigabytes
                                  dict(convincing_correlation="x"), dict(outside_margin=None),
                                  dict(depth_tolerance_share=math.nan),
                                  dict(optimum_iterations=2.5)])

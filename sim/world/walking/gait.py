@@ -12,6 +12,15 @@ MIN_STEP_PERIOD_S, MAX_STEP_PERIOD_S = 0.1, 60.0
 #: Highest centre of mass the walking model takes: six times this 0.6 m robot's (0.33 m); far
 #: higher, the preview controller's Riccati equation has no finite solution.
 MAX_COM_HEIGHT_M = 2.0
+#: The humanoid's leg from hip to ankle (thigh and shank 0.15 m each,
+#: robot_models/humanoid/README.md): no step is longer, wider or higher.
+LEG_LENGTH_M = 0.30
+#: Half the width of the humanoid's sole (0.075 m): a ZMP reference beyond the sole's edge has no
+#: support under it.
+SOLE_HALF_WIDTH_M = 0.0375
+#: Largest angle of the gait's joint motions and of a step's turn (deg), either way: a quarter
+#: turn, beyond every waist and neck joint's range.
+MAX_GAIT_ANGLE_DEG = 90.0
 
 
 @dataclass(frozen=True)
@@ -77,6 +86,19 @@ class GaitParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"GaitParams.{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("step_length_max_m", "step_width_m", "step_height_m"):
+            if getattr(self, name) > LEG_LENGTH_M:
+                raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
+                                 f"allowed: 0 to {LEG_LENGTH_M} m (the leg's length)")
+        if abs(self.lateral_sway_m) > SOLE_HALF_WIDTH_M:
+            raise ValueError(f"GaitParams.lateral_sway_m={self.lateral_sway_m!r} is out of "
+                             f"range; allowed: -{SOLE_HALF_WIDTH_M} to {SOLE_HALF_WIDTH_M} m "
+                             f"(half the sole's width)")
+        for name in ("step_yaw_max_deg", "torso_lean_deg", "waist_roll_amp_deg",
+                     "waist_yaw_amp_deg", "head_nod_amp_deg", "arm_swing_deg"):
+            if abs(getattr(self, name)) > MAX_GAIT_ANGLE_DEG:
+                raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
+                                 f"allowed: -{MAX_GAIT_ANGLE_DEG:g} to {MAX_GAIT_ANGLE_DEG:g} deg")
         if self.com_height_m > MAX_COM_HEIGHT_M:
             raise ValueError(f"GaitParams.com_height_m={self.com_height_m!r} is out of range; "
                              f"allowed: 0 to {MAX_COM_HEIGHT_M} m")

@@ -142,6 +142,13 @@ frame_stride = 3
     ('scene = "lab"\n[gait.overrides]\nstep_height_m = nan\n', "gait.overrides.step_height_m",
      "a finite number"),
     ('scene = "lab"\n[gait]\npreset = "run"\n', "gait.preset", "paper_like"),
+    # Within the robot's reach: these ran, and the robot fell or stood still.
+    ('scene = "lab"\n[gait.overrides]\nlateral_sway_m = 1000.0\n', "gait.overrides",
+     "-0.0375 to 0.0375 m (half the sole's width)"),
+    ('scene = "lab"\n[gait.overrides]\nstep_width_m = 5.0\n', "gait.overrides",
+     "0 to 0.3 m (the leg's length)"),
+    ('scene = "lab"\n[gait.overrides]\narm_swing_deg = -1000.0\n', "gait.overrides",
+     "-90 to 90 deg"),
     ('scene = "lab"\n[gait]\noverrides = { stride = 1.0 }\n', "gait.overrides.stride",
      "step_period_s"),
     ('scene = "lab"\n[evaluation]\nmethods = ["sift", "orb"]\n', "evaluation.methods",
