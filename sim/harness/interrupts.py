@@ -107,6 +107,43 @@ def signal_handlers_kept() -> Iterator[None]:
                 signal.signal(number, kept)
 
 
+@contextmanager
+def children_start_deaf_to_ctrl_c() -> Iterator[None]:
+    """Processes started within the block ignore Ctrl-C from their first instruction; this
+    process still gets a Ctrl-C pressed meanwhile, once the block ends.
+
+    Ctrl-C reaches the terminal's whole process group: a spawned worker still importing its
+    modules (a second or more) would print a traceback of its own beside the job's one line.
+    A disposition of "ignore" is the one a new program inherits, so this process ignores
+    SIGINT while it starts them, and holds it blocked meanwhile so that a Ctrl-C pressed then
+    stays pending for it (Linux keeps a blocked signal even when it is ignored). A child may
+    start with SIGINT blocked too, and with a Ctrl-C of its start-up pending: a worker's
+    initializer drops it (:func:`ignore_ctrl_c`). One gap remains: another thread
+    of this process, not blocking SIGINT, may take a Ctrl-C pressed during a start (a few
+    milliseconds) and drop it. Main thread only; elsewhere, and when SIGINT is handled outside
+    Python or already ignored, the block runs unchanged.
+    """
+    handler = signal.getsignal(signal.SIGINT)
+    if (threading.current_thread() is not threading.main_thread() or handler is None
+            or handler is signal.SIG_IGN):
+        yield
+        return
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+def ignore_ctrl_c() -> None:
+    """Ignore Ctrl-C in this process from now on, and drop one pending since its start
+    (:func:`children_start_deaf_to_ctrl_c`): a worker's initializer."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # ignored: dropped
+
+
 #: Exit status of a process a stop ended: 128 + SIGINT, as shells report Ctrl-C.
 INTERRUPTED_STATUS = 130
 

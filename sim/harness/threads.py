@@ -17,6 +17,8 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from sim.harness.interrupts import children_start_deaf_to_ctrl_c, ignore_ctrl_c
+
 #: Environment variables that set a BLAS / OpenMP library's thread count.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
@@ -70,7 +72,8 @@ def single_thread_pool(processes: int) -> "WorkerPool":
 
 class WorkerPool:
     """Spawn worker processes, each on one OpenCV and one BLAS/OpenMP thread and deaf to Ctrl-C
-    (it reaches the whole process group: the parent ends the work and terminates the pool).
+    from its start (it reaches the whole process group: the parent ends the work and terminates
+    the pool; :func:`~sim.harness.interrupts.children_start_deaf_to_ctrl_c`).
 
     ``submit(fn, *args)`` gives a future; ``map(fn, items)`` the results in order. A worker
     that dies (a method's segfault, an ``os._exit``) fails every pending result with
@@ -96,10 +99,12 @@ class WorkerPool:
             raise
 
     def submit(self, fn, /, *args):
-        return self._executor.submit(fn, *args)
+        with children_start_deaf_to_ctrl_c():  # a submit may start a worker
+            return self._executor.submit(fn, *args)
 
     def map(self, fn, items):
-        return self._executor.map(fn, items)
+        with children_start_deaf_to_ctrl_c():
+            return self._executor.map(fn, items)
 
     def terminate(self) -> None:
         """Drop the pending work, end the workers at once, restore the environment."""
@@ -122,7 +127,5 @@ class WorkerPool:
 
 
 def _init_single_thread_worker() -> None:
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    ignore_ctrl_c()
     limit_threads()

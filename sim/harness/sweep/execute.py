@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sim.harness.cpu_paths import cpu_paths_in_effect
-from sim.harness.interrupts import Interrupted, signal_handlers_kept
+from sim.harness.interrupts import (Interrupted, children_start_deaf_to_ctrl_c, ignore_ctrl_c,
+                                    signal_handlers_kept)
 from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
@@ -159,11 +160,15 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
         return
     context = multiprocessing.get_context("spawn")
     stopping = context.Event()
+    # A worker hears Ctrl-C while it runs a run (which then ends with complete files), and
+    # only if this process does.
+    ctrl_c = signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                               initializer=_start_worker, initargs=(stopping,))
+                               initializer=_start_worker, initargs=(stopping, ctrl_c))
     try:
-        futures = {pool.submit(_run_unless_stopped, run_fn, sweep_run.config): sweep_run
-                   for sweep_run in pending}
+        with children_start_deaf_to_ctrl_c():  # the submits start the workers
+            futures = {pool.submit(_run_unless_stopped, run_fn, sweep_run.config): sweep_run
+                       for sweep_run in pending}
         remaining = set(futures)
         while remaining:
             done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
@@ -189,13 +194,18 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
 
 #: In a worker process: set when the sweep is stopping (its parent was interrupted).
 _stopping = None
+#: In a worker process: whether its runs hear Ctrl-C.
+_ctrl_c = False
 
 
-def _start_worker(stopping) -> None:
-    """A pool worker's initializer: one thread per library, and the parent's stop event."""
-    global _stopping
+def _start_worker(stopping, ctrl_c: bool) -> None:
+    """A pool worker's initializer: one thread per library, the parent's stop event, and
+    whether its runs hear Ctrl-C; until a run starts, the worker ignores it (a Ctrl-C while it
+    imports would print a traceback of its own)."""
+    global _stopping, _ctrl_c
+    ignore_ctrl_c()
     limit_threads()
-    _stopping = stopping
+    _stopping, _ctrl_c = stopping, ctrl_c
 
 
 def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
@@ -203,7 +213,12 @@ def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) 
     worker one more queued run than it can cancel, and a stopped sweep must not start it."""
     if _stopping is not None and _stopping.is_set():
         raise KeyboardInterrupt("not started: the runs were interrupted")
-    return run_fn(config)
+    if _ctrl_c:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return run_fn(config)
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _run_as_ray_task(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:

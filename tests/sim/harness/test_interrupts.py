@@ -4,18 +4,21 @@ before and after the job, the egostab process ends on them at once with the same
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 import tomllib
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
 from scenarios import SCENARIOS_DIR, SUITES_DIR
-from sim.harness.interrupts import (Interrupted, interrupt_reason, signal_handlers_kept,
-                                    stop_signals_interrupt)
+from sim.harness.interrupts import (Interrupted, children_start_deaf_to_ctrl_c,
+                                    interrupt_reason, signal_handlers_kept, stop_signals_interrupt)
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 
@@ -64,6 +67,31 @@ def test_a_signal_raised_again_by_a_library_is_still_named():
         for again in (Interrupted("Line 47: error while parsing element <default>: SIGHUP"),
                       KeyboardInterrupt()):
             assert interrupt_reason(again) == "interrupted by SIGHUP"
+
+
+def test_processes_started_within_the_block_ignore_ctrl_c_from_their_start():
+    # A worker still importing its modules printed a traceback of its own on Ctrl-C. A pool
+    # without an initializer shows the state a worker starts in.
+    context = multiprocessing.get_context("spawn")
+    with children_start_deaf_to_ctrl_c():
+        deaf = ProcessPoolExecutor(1, mp_context=context)
+        handler = deaf.submit(signal.getsignal, signal.SIGINT)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # this process's again
+    with deaf, ProcessPoolExecutor(1, mp_context=context) as usual:
+        assert handler.result() == signal.SIG_IGN
+        assert usual.submit(signal.getsignal, signal.SIGINT).result() \
+            is signal.default_int_handler
+
+
+def test_a_ctrl_c_within_the_block_reaches_this_process_after_it():
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with children_start_deaf_to_ctrl_c():
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+            time.sleep(0.1)
+            reached.append("end of the block")
+    assert reached == ["end of the block"]
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])
 
 
 def _wait_for(predicate, timeout_s: float) -> None:

@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import os
+import signal
 import time
 from pathlib import Path
 
@@ -61,8 +62,15 @@ def fake_run(config: RunConfig) -> dict:
     write_run_outputs(run_dir, scenario=planned_scenario(config)[1],
                       records=records, summary=summarize(records),
                       meta={"seed": config.seed, "max_frames": config.max_frames,
-                            "parent_mark": PARENT_MARK}, status="complete", plots=False)
+                            "parent_mark": PARENT_MARK, "ctrl_c": _ctrl_c_heard()},
+                      status="complete", plots=False)
     return read_metrics(run_dir)
+
+
+def _ctrl_c_heard() -> bool:
+    """Whether Ctrl-C raises KeyboardInterrupt here: handled so, and not blocked."""
+    return (signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            and signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, []))
 
 
 def failing_run(config: RunConfig) -> dict:
@@ -376,6 +384,9 @@ def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch):
                        run_fn=fake_run)
     for outcome in result.outcomes:
         assert outcome.metrics["run"]["parent_mark"] == "module default"  # not inherited
+        # Started deaf to Ctrl-C (no traceback of theirs while they import), they hear it
+        # when they run: an interrupted sweep's runs end with complete files.
+        assert outcome.metrics["run"]["ctrl_c"] is True
         assert calls(outcome.run.config.out_dir) == 1
         pid = int((Path(outcome.run.config.out_dir) / CALLS_LOG).read_text())
         assert pid != os.getpid()
@@ -410,8 +421,6 @@ def test_a_run_that_ends_its_worker_process_fails_alone(tmp_path):
 def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
     # Started in the background (`&`, nohup, a batch job), the sweep ignores Ctrl-C and so do
     # Ray's workers; a cancel, a Ctrl-C of the worker, then never stopped the run.
-    import signal
-
     from sim.harness.sweep.execute import _run_as_ray_task
 
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -40,11 +40,12 @@ def test_the_egostab_command_limits_threads_first():
 def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ignore_ctrl_c():
     probe = ("(__import__('cv2').getNumThreads(), __import__('os').environ['OMP_NUM_THREADS'], "
              "max(p['num_threads'] for p in __import__('threadpoolctl').threadpool_info()), "
-             "__import__('signal').getsignal(2) == __import__('signal').SIG_IGN)")
+             "__import__('signal').getsignal(2) == __import__('signal').SIG_IGN, "
+             "2 not in __import__('signal').pthread_sigmask(0, []))")  # ignored, not blocked
     out = _python("from sim.harness.threads import single_thread_pool\n"
                   "with single_thread_pool(1) as pool:\n"
                   f"    print(*pool.submit(eval, {probe!r}).result())")
-    assert out == ["1", "1", "1", "True"]
+    assert out == ["1", "1", "1", "True", "True"]
 
 
 def test_a_worker_count_given_is_kept_and_checked():
