@@ -69,7 +69,15 @@ def test_a_signal_raised_again_by_a_library_is_still_named():
             assert interrupt_reason(again) == "interrupted by SIGHUP"
 
 
-def test_processes_started_within_the_block_ignore_ctrl_c_from_their_start():
+@pytest.fixture
+def hears_ctrl_c():
+    """This process hears Ctrl-C, as from a terminal (a test run in the background ignores it)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def test_processes_started_within_the_block_ignore_ctrl_c_from_their_start(hears_ctrl_c):
     # A worker still importing its modules printed a traceback of its own on Ctrl-C. A pool
     # without an initializer shows the state a worker starts in.
     context = multiprocessing.get_context("spawn")
@@ -83,7 +91,7 @@ def test_processes_started_within_the_block_ignore_ctrl_c_from_their_start():
             is signal.default_int_handler
 
 
-def test_a_ctrl_c_within_the_block_reaches_this_process_after_it():
+def test_a_ctrl_c_within_the_block_reaches_this_process_after_it(hears_ctrl_c):
     reached = []
     with pytest.raises(KeyboardInterrupt):
         with children_start_deaf_to_ctrl_c():

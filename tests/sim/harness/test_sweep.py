@@ -378,15 +378,22 @@ def test_local_pool_runs_everything_then_resumes_only_the_unfinished(tmp_path):
     check_table(tmp_path, spec, {r.name: "complete" for r in plan})
 
 
-def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch):
+@pytest.mark.parametrize("sweep_hears_ctrl_c", [True, False])
+def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch, sweep_hears_ctrl_c):
     monkeypatch.setattr(__import__(__name__, fromlist=["_"]), "PARENT_MARK", "set in parent")
-    result = run_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path, workers=2,
-                       run_fn=fake_run)
+    # As started from a terminal, or in the background (`&`, nohup: Ctrl-C ignored).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler if sweep_hears_ctrl_c
+                             else signal.SIG_IGN)
+    try:
+        result = run_sweep(small_spec(seeds=[0], noise_levels=[1.0]), tmp_path, workers=2,
+                           run_fn=fake_run)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     for outcome in result.outcomes:
         assert outcome.metrics["run"]["parent_mark"] == "module default"  # not inherited
         # Started deaf to Ctrl-C (no traceback of theirs while they import), they hear it
-        # when they run: an interrupted sweep's runs end with complete files.
-        assert outcome.metrics["run"]["ctrl_c"] is True
+        # when they run if the sweep does: an interrupted sweep's runs end with complete files.
+        assert outcome.metrics["run"]["ctrl_c"] is sweep_hears_ctrl_c
         assert calls(outcome.run.config.out_dir) == 1
         pid = int((Path(outcome.run.config.out_dir) / CALLS_LOG).read_text())
         assert pid != os.getpid()
