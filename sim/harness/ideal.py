@@ -307,7 +307,7 @@ def run_ideal(config: IdealConfig) -> dict:
     """
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.ground_truth import GroundTruth
-    from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt
+    from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, stops_held
     from sim.harness.report import write_run_outputs
     from sim.harness.runner import (CHECKPOINT_S, COMPLETE, ERROR, INCOMPLETE, INTERRUPTED,
                                     RunFolder, timed_estimate)
@@ -377,8 +377,9 @@ def run_ideal(config: IdealConfig) -> dict:
                 status, message = ERROR, f"{type(error).__name__}: {error}"
                 raise
             finally:
-                meta.update(message=message, wall_time_s=time.perf_counter() - wall_start)
-                metrics = write(final=True)
+                with stops_held():  # a stop now ends the job after the final write
+                    meta.update(message=message, wall_time_s=time.perf_counter() - wall_start)
+                    metrics = write(final=True)
         finally:
             folder.settle(finished=status == COMPLETE)
     return metrics

@@ -108,6 +108,23 @@ def signal_handlers_kept() -> Iterator[None]:
 
 
 @contextmanager
+def stops_held() -> Iterator[None]:
+    """Within the block, Ctrl-C, SIGTERM and SIGHUP are held, and the first one received is
+    delivered again once the block ends (to the handler in place then): a run's final write is
+    not cut short, so its files say how it ended. A signal the process ignores stays ignored.
+    Main thread only; elsewhere the block runs unchanged."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    with signal_handlers_kept():
+        handle((signal.SIGINT, *STOP_SIGNALS), lambda signum, frame: held.append(signum))
+        yield
+    if held:
+        signal.raise_signal(held[0])
+
+
+@contextmanager
 def children_start_deaf_to_ctrl_c() -> Iterator[None]:
     """Processes started within the block ignore Ctrl-C from their first instruction; this
     process still gets a Ctrl-C pressed meanwhile, once the block ends.

@@ -28,7 +28,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, stops_the_job
+from sim.harness.interrupts import (interrupt_reason, stop_signals_interrupt, stops_held,
+                                    stops_the_job)
 from sim.harness.methods import Estimator, check_methods, exception_text, method_factory
 from sim.harness.threads import worker_count
 from stabilizer import compensate
@@ -36,7 +37,8 @@ from stabilizer.motion import Motion
 
 #: Statuses a run can end with (metrics.json "status").
 COMPLETE, FELL, INTERRUPTED, ERROR = "complete", "fell", "interrupted", "error"
-#: The status of a run folder until its final write (at checkpoints, or after a second interrupt).
+#: The status of a run folder until its final write (at checkpoints, or where the process was
+#: killed outright).
 INCOMPLETE = "incomplete"
 #: Name of the recording in a run folder.
 RECORDING_RRD = "recording.rrd"
@@ -396,8 +398,8 @@ def run(config: RunConfig) -> dict:
     "complete", "fell" (the robot fell: frames up to the fall are scored), "interrupted"
     (Ctrl-C, SIGTERM or SIGHUP; the message says which) or "error" (an exception, re-raised
     after the files of the finished frames are written). Until the final write, metrics.json
-    says "incomplete" (written at the start and at every checkpoint); it is written last, so
-    a second interrupt during the final write leaves the folder saying so.
+    says "incomplete" (written at the start and at every checkpoint); a stop during the final
+    write is held until the write is done, then ends the job (raised from here).
     """
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     methods = tuple(config.methods or scenario.evaluation.methods)
@@ -468,8 +470,9 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
             scoring.status, scoring.message = ERROR, f"{type(error).__name__}: {error}"
             raise
         finally:
-            bar.close()
-            metrics = scoring.finish(source.sim_time_s, estimations)
+            with stops_held():  # a stop now ends the job after the final write, not within it
+                bar.close()
+                metrics = scoring.finish(source.sim_time_s, estimations)
     return metrics
 
 

@@ -22,8 +22,9 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sim.harness.cpu_paths import cpu_paths_in_effect
-from sim.harness.interrupts import (Interrupted, children_start_deaf_to_ctrl_c, ignore_ctrl_c,
-                                    signal_handlers_kept)
+from sim.harness.interrupts import (STOP_SIGNALS, Interrupted, children_start_deaf_to_ctrl_c,
+                                    handle, ignore_ctrl_c, signal_handlers_kept,
+                                    stop_signals_interrupt)
 from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
@@ -200,23 +201,33 @@ _ctrl_c = False
 
 def _start_worker(stopping, ctrl_c: bool) -> None:
     """A pool worker's initializer: one thread per library, the parent's stop event, and
-    whether its runs hear Ctrl-C; until a run starts, the worker ignores it (a Ctrl-C while it
-    imports would print a traceback of its own)."""
+    whether its runs hear Ctrl-C. Between runs the worker outlives every stop signal: Ctrl-C
+    while it imports would print a traceback of its own, and a worker that a SIGTERM ended
+    while idle broke the pool, which then stopped the other workers with a second SIGTERM
+    that cut their runs' final writes short (a run left "incomplete"). A signal the sweep
+    ignores (``nohup``'s SIGHUP) stays ignored."""
     global _stopping, _ctrl_c
     ignore_ctrl_c()
+    handle(STOP_SIGNALS, _between_runs)
     limit_threads()
     _stopping, _ctrl_c = stopping, ctrl_c
 
 
+def _between_runs(signum: int, frame) -> None:
+    """A stop signal between a worker's runs: nothing to stop (the sweep stops its queue)."""
+
+
 def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
     """``run_fn(config)`` in a pool's worker, unless the sweep is stopping: the pool hands a
-    worker one more queued run than it can cancel, and a stopped sweep must not start it."""
+    worker one more queued run than it can cancel, and a stopped sweep must not start it.
+    Within the run, a stop signal ends it as it ends a run anywhere (complete files)."""
     if _stopping is not None and _stopping.is_set():
         raise KeyboardInterrupt("not started: the runs were interrupted")
     if _ctrl_c:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        return run_fn(config)
+        with stop_signals_interrupt():
+            return run_fn(config)
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 

@@ -229,6 +229,30 @@ def test_an_interrupted_ideal_keeps_the_frames_it_finished(tmp_path, monkeypatch
         assert len(list(csv.DictReader(handle))) == 2 * 2
 
 
+def test_a_stop_during_the_final_write_is_held_until_the_files_are_complete(tmp_path,
+                                                                          monkeypatch):
+    """A stop arriving as a finished experiment writes its files (a sweep's SIGTERM reached a
+    run there and left it "incomplete"): the files say "complete", then the stop ends the job."""
+    import sim.harness.report as report
+
+    real = report.write_run_outputs
+
+    def stopped_while_writing(*args, **kwargs):
+        if kwargs["status"] != "incomplete":  # the final write
+            signal.raise_signal(signal.SIGTERM)
+            time.sleep(0.05)  # a Python handler runs between bytecodes: here, were it not held
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(report, "write_run_outputs", stopped_while_writing)
+    np.save(tmp_path / "depth.npy", make_depth_scene(7))
+    with pytest.raises(Interrupted, match="SIGTERM"):
+        run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "out"),
+                              methods=("ecc",), n_frames=3))
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert (metrics["status"], metrics["run"]["frames_done"]) == ("complete", 3)
+    assert (tmp_path / "out" / "summary.md").is_file()
+
+
 # ------------------------------------------------------------- trajectories and their bounds
 @pytest.mark.parametrize("row, column, allowed", [
     ("1,ok,0,1e308,0", "true_dx_px", "at most 176 px either way (the image's width"),

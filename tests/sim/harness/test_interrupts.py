@@ -18,7 +18,8 @@ import pytest
 
 from scenarios import SCENARIOS_DIR, SUITES_DIR
 from sim.harness.interrupts import (Interrupted, children_start_deaf_to_ctrl_c,
-                                    interrupt_reason, signal_handlers_kept, stop_signals_interrupt)
+                                    interrupt_reason, signal_handlers_kept, stop_signals_interrupt,
+                                    stops_held)
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 
@@ -67,6 +68,18 @@ def test_a_signal_raised_again_by_a_library_is_still_named():
         for again in (Interrupted("Line 47: error while parsing element <default>: SIGHUP"),
                       KeyboardInterrupt()):
             assert interrupt_reason(again) == "interrupted by SIGHUP"
+
+
+def test_a_stop_within_a_held_block_ends_the_job_after_it():
+    reached = []
+    with stop_signals_interrupt():
+        with pytest.raises(Interrupted, match="SIGHUP"):
+            with stops_held():
+                signal.raise_signal(signal.SIGHUP)
+                time.sleep(0.05)
+                reached.append("end of the block")
+        assert reached == ["end of the block"]
+        assert signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN  # the job's handler again
 
 
 @pytest.fixture
