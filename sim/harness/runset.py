@@ -56,7 +56,8 @@ def check_header(raw: Mapping[str, Any], allowed: Mapping[str, str], required: t
         if key not in raw:
             raise fail(key, "missing")
     name = raw.get("name", default_name)
-    if not is_safe_name(name):
+    # The name is a folder's (results/<kind>s/<name>): "." or ".." would be another folder.
+    if not is_safe_name(name) or not name.strip("."):
         raise fail("name", f"got {name!r}")
     description = raw.get("description", "")
     if not isinstance(description, str):

@@ -50,7 +50,8 @@ from sim.harness.validation import FileValueError, distinct_list, is_seed
 VARIED_KEYS = ("gait.preset", "scene_seed", "seed")
 #: Keys of a suite file -> what is allowed (the module docstring shows them in use).
 ALLOWED = {
-    "name": "a non-empty name of letters, digits, '_', '-', '.' (default: the file's stem)",
+    "name": "a non-empty name of letters, digits, '_', '-', '.', not only dots (default: "
+            "the file's stem)",
     "description": "free text",
     "methods": f"a non-empty list of distinct methods, each {ACCEPTED_FORMS}",
     "max_frames": "an integer >= 1",
@@ -181,8 +182,8 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
         template = load_scenario(scenario, overrides)
     except ScenarioError as error:
         problem = f"scenario {scenario_name(scenario)} is refused ({error})"
-        if error.key in own_overrides or error.key not in overrides:
-            raise fail("overrides" if error.key in own_overrides else "scenario",
+        if _set_by(error.key, own_overrides) or not _set_by(error.key, overrides):
+            raise fail("overrides" if _set_by(error.key, own_overrides) else "scenario",
                        problem) from None
         raise SuiteError(source, "overrides", problem, ALLOWED["overrides"]) from None
     gaits = distinct_list(entry.get("gaits", [template.gait.preset]), "gaits", fail,
@@ -206,3 +207,8 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
     return sequences
 
 
+def _set_by(key: str | None, overrides: Mapping[str, Any]) -> bool:
+    """Whether the scenario key ``key`` a refusal names is one of ``overrides`` or lies within
+    one (``pushes[0].impulse_ns`` within ``pushes``, ``sensor.fps`` within ``sensor``)."""
+    return key is not None and any(key == name or key.startswith((f"{name}.", f"{name}["))
+                                   for name in overrides)

@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 from sim.harness.cpu_paths import cpu_paths_in_effect
 from sim.harness.interrupts import (STOP_SIGNALS, Interrupted, children_start_deaf_to_ctrl_c,
                                     handle, ignore_ctrl_c, signal_handlers_kept,
-                                    stop_signals_interrupt)
+                                    stop_signals_interrupt, stops_held)
 from sim.harness.report import METRICS_JSON
 from sim.harness.runner import RunConfig, run
 from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, completed_metrics,
@@ -190,6 +190,15 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
                 worker.terminate()
         raise
     finally:  # also for an abandoned generator: drop queued runs, let started ones end
+        _shut_down(pool)
+
+
+def _shut_down(pool: ProcessPoolExecutor) -> None:
+    """Drop the pool's queued runs and wait for its started ones to end, a stop signal held
+    meanwhile (``timeout`` and batch systems signal the process and then its whole group): a
+    shutdown cut short left the interpreter's exit waiting forever for workers never told to
+    end (CPython issue 83386)."""
+    with stops_held():
         pool.shutdown(wait=True, cancel_futures=True)
 
 

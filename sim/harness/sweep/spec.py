@@ -47,7 +47,8 @@ from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key
 DEFAULT_NOISE_KEY = "sensor.noise_scale"
 #: Keys of a sweep file -> what is allowed (the module docstring shows them in use).
 ALLOWED = {
-    "name": "a non-empty name of letters, digits, '_', '-', '.' (default: the file's stem)",
+    "name": "a non-empty name of letters, digits, '_', '-', '.', not only dots (default: "
+            "the file's stem)",
     "description": "free text",
     "scenarios": "a non-empty list of distinct shipped scenario names or TOML paths",
     "seeds": "a non-empty list of distinct integers from 0 to 2**63 - 1",

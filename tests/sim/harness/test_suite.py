@@ -83,6 +83,8 @@ def test_entry_overrides_apply_over_the_suites():
     ({"max_frames": 0}, "max_frames", "integer >= 1"),
     ({"record": "no"}, "record", "true or false"),
     ({"name": "a b"}, "name", "letters, digits"),
+    ({"name": ".."}, "name", "not only dots"),  # results/suites/.. is results/ itself
+    ({"name": "."}, "name", "not only dots"),
     ({"overrides": {"seed": 3}}, "overrides", "not gait.preset, scene_seed, seed"),
     ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
     ({"overrides": {"sensor.fsp": 20.0}}, "overrides", "single values"),
@@ -102,6 +104,11 @@ def test_entry_overrides_apply_over_the_suites():
     (sequence_entry(gaits=["limp"]), "sequences[0].gaits[0]", "GAIT_PRESETS"),
     (sequence_entry(gaits="default"), "sequences[0].gaits", "non-empty list"),
     (sequence_entry(overrides={"scene_seed": 1}), "sequences[0].overrides", "not gait.preset"),
+    # A refusal within an override's value names the overrides, not the scenario.
+    (sequence_entry(overrides={"pushes": [{"t": 1.0, "impulse_ns": [0.0, 20.0, 0.0]}]}),
+     "sequences[0].overrides", "single values"),
+    ({"overrides": {"pushes": [{"t": 1.0, "impulse_ns": [0.0, 20.0, 0.0]}]}}, "overrides",
+     "single values"),
     ({"sequences": [{"scenario": "corridor_straight", "scene_seeds": [5]},
                     {"scenario": "corridor_straight", "scene_seeds": [6, 5]}]},
      "sequences[1]", "each template, gait, scene seed and seed once"),

@@ -180,6 +180,7 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"max_frames": 2.5}, "max_frames", "integer >= 1"),
     ({"record": "yes"}, "record", "true or false"),
     ({"name": "a/b"}, "name", "letters, digits"),
+    ({"name": ".."}, "name", "not only dots"),  # results/sweeps/.. is results/ itself
     ({"overrides": {"seed": 3}}, "overrides", "not seed"),
     ({"overrides": {"sensor.noise_scale": 3}}, "overrides", "not the noise key"),
     # Within the noise key, or holding it: the level would replace it unseen.
@@ -477,3 +478,21 @@ def test_a_folder_in_use_by_another_sweep_or_suite_is_refused(tmp_path, capsys):
         assert "in use by another egostab command" in err and "\n" not in err
         assert not (tmp_path / "runs").exists()
     assert not (tmp_path / LOCK_FILE).exists()
+
+
+def test_a_second_stop_during_the_pools_shutdown_still_waits_for_its_workers():
+    # timeout and batch systems signal the process, then its group: the second stop landed in
+    # the shutdown, which then never told the workers to end, and the exit waited for them
+    # forever (CPython issue 83386).
+    class Pool:
+        calls = []
+
+        def shutdown(self, wait, cancel_futures):
+            signal.raise_signal(signal.SIGTERM)
+            time.sleep(0.05)  # a Python handler runs between bytecodes: here, were it not held
+            self.calls.append((wait, cancel_futures))
+
+    with sweep_execute.stop_signals_interrupt():
+        with pytest.raises(sweep_execute.Interrupted, match="SIGTERM"):  # after the shutdown
+            sweep_execute._shut_down(Pool())
+    assert Pool.calls == [(True, True)]
