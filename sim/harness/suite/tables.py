@@ -119,6 +119,13 @@ def _value(figure: str, value: float) -> str:
             else format_number(value, 3))
 
 
+def _difference(figure: str, value: float) -> str:
+    """A difference of two methods' figures: of failure rates in percentage points (a rate
+    of 8% against 10% differs by 2 points, not by 2%)."""
+    return (format_number(100 * value, 1) if figure == FAILURE_RATE and math.isfinite(value)
+            else format_number(value, 3))
+
+
 def _interval_cell(figure: str, interval: dict) -> str:
     bounds = ("no interval" if not interval["method"] else
               f"[{_value(figure, interval['low'])}, {_value(figure, interval['high'])}]")
@@ -141,11 +148,14 @@ def differences_markdown(figures: dict) -> str:
             return "no clear difference (interval contains 0)"
         return f"{entry['lower']} is lower (interval excludes 0)"
 
+    def figure(name: str) -> str:
+        return FIGURES[name] + (" (points)" if name == FAILURE_RATE else "")
+
     return markdown_table(
         ("First", "Second", "Figure", "First - second", f"{CONFIDENCE_LEVEL:.0%} interval", "n",
          "Verdict"),
-        ([d["first"], d["second"], FIGURES[d["figure"]], _value(d["figure"], d["mean"]),
-          (f"[{_value(d['figure'], d['low'])}, {_value(d['figure'], d['high'])}]"
+        ([d["first"], d["second"], figure(d["figure"]), _difference(d["figure"], d["mean"]),
+          (f"[{_difference(d['figure'], d['low'])}, {_difference(d['figure'], d['high'])}]"
            if d["method"] else "n/a"), str(d["n"]), verdict(d)]
          for d in figures["differences"]))
 

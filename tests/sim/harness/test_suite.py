@@ -283,6 +283,8 @@ def test_paired_differences_say_which_method_is_lower_and_whether_the_data_say_s
     assert not failure["clear"] and failure["mean"] == 0.0
     assert "t2fuzzy is lower (interval excludes 0)" in result.markdown
     assert "no clear difference (interval contains 0)" in result.markdown
+    # A difference of failure rates is in percentage points, not a relative %.
+    assert "| t2fuzzy | sift | Failure rate (points) | 0.0 | [0.0, 0.0] | 12 |" in result.markdown
 
 
 def test_few_sequences_give_intervals_but_no_verdict(tmp_path):
