@@ -183,8 +183,9 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
     except BaseException as error:
         stopping.set()  # no worker starts another run
         # Ctrl-C reaches the workers from the terminal; SIGTERM and SIGHUP reach only this
-        # process, so pass those on: each started run then ends with complete files. A second
-        # signal on top of a Ctrl-C would cut a run's final writes short.
+        # process, so pass those on: each started run then ends with complete files (a worker
+        # between runs outlives them). Passed on after a Ctrl-C, a signal would reach each run
+        # a second time (held through its final write, then raised from it).
         if not isinstance(error, KeyboardInterrupt) or isinstance(error, Interrupted):
             for worker in multiprocessing.active_children():
                 worker.terminate()
