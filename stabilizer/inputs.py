@@ -29,6 +29,11 @@ MAX_KERNEL_SIDE = 255
 #: Largest Gaussian scale (pixels) of a method: its kernel, 6 sigma wide, stays within
 #: :data:`MAX_KERNEL_SIDE`.
 MAX_SIGMA_PX = 40.0
+#: Most iterations of a method's iterative steps (IT2-FCM, ECC, ICP, the rotation climb, the
+#: trust check's ECC): each settles within tens of iterations where it settles at all (defaults
+#: 8-100); one that has not by 1000 oscillates, and more only cost time (ICP on a noise frame
+#: never stopped; IT2-FCM with a tolerance of 1e-300 ran for minutes).
+MAX_ITERATIONS = 1000
 
 
 def depth_to_disparity(

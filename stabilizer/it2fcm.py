@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 
 from stabilizer.histogram_seeds import N_LEVELS
+from stabilizer.inputs import MAX_ITERATIONS, MAX_KERNEL_SIDE
 
 
 @dataclass(frozen=True)
@@ -277,7 +278,8 @@ class IT2FCM:
     tol : float, optional
         Stop when no centre moves more than this many gray levels. Default 0.01.
     max_iter : int, optional
-        Cap on the number of centre updates. Default 100.
+        Cap on the number of centre updates, at most 1000
+        (:data:`~stabilizer.inputs.MAX_ITERATIONS`). Default 100.
 
     References
     ----------
@@ -292,8 +294,9 @@ class IT2FCM:
                  max_iter: int = 100):
         if not (1.0 < m1 < m2):
             raise ValueError(f"fuzzifiers must satisfy 1 < m1 < m2; got m1={m1}, m2={m2}")
-        if tol <= 0 or max_iter < 1:
-            raise ValueError(f"need tol > 0 and max_iter >= 1; got tol={tol}, max_iter={max_iter}")
+        if tol <= 0 or not 1 <= max_iter <= MAX_ITERATIONS:
+            raise ValueError(f"need tol > 0 and max_iter from 1 to {MAX_ITERATIONS}; "
+                             f"got tol={tol}, max_iter={max_iter}")
         self.m1, self.m2 = float(m1), float(m2)
         self.m = (self.m1 + self.m2) / 2.0
         self.tol = float(tol)
@@ -357,8 +360,9 @@ class LabelCleaner:
     Parameters
     ----------
     morph_size : int, optional
-        Side of the square structuring element in pixels (odd, >= 1; 1 disables). The paper
-        uses morphology without giving a size; default 3.
+        Side of the square structuring element in pixels (odd, from 1 to 255,
+        :data:`~stabilizer.inputs.MAX_KERNEL_SIDE`; 1 disables). The paper uses morphology
+        without giving a size; default 3.
     min_area : int, optional
         Labels with fewer pixels than this after clean-up are removed (set to 0). Default 30.
 
@@ -369,8 +373,9 @@ class LabelCleaner:
     """
 
     def __init__(self, morph_size: int = 3, min_area: int = 30):
-        if int(morph_size) < 1 or int(morph_size) % 2 == 0:
-            raise ValueError(f"morph_size must be an odd integer >= 1; got {morph_size}")
+        if not 1 <= int(morph_size) <= MAX_KERNEL_SIDE or int(morph_size) % 2 == 0:
+            raise ValueError(f"morph_size must be an odd integer from 1 to {MAX_KERNEL_SIDE}; "
+                             f"got {morph_size}")
         if min_area < 0:
             raise ValueError(f"min_area must be >= 0; got {min_area}")
         self.kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (int(morph_size),) * 2)

@@ -82,7 +82,14 @@ from stabilizer.ellipse import (
 )
 from stabilizer.fncc import RotatedTemplate, TemplateMatch
 from stabilizer.histogram_seeds import HistogramSeeds
-from stabilizer.inputs import MAX_KERNEL_SIDE, MAX_SIGMA_PX, check_flag, check_integer, check_number
+from stabilizer.inputs import (
+    MAX_ITERATIONS,
+    MAX_KERNEL_SIDE,
+    MAX_SIGMA_PX,
+    check_flag,
+    check_integer,
+    check_number,
+)
 from stabilizer.it2fcm import IT2FCM, LabelCleaner
 from stabilizer.motion import Motion
 from stabilizer.peers.preparation import clipped, robust_value_range
@@ -95,7 +102,7 @@ from stabilizer.t2fuzzy_refinements import (
     half_resolution_template,
     translation_guess,
 )
-from stabilizer.wavelet_features import WaveletFeatures
+from stabilizer.wavelet_features import MAX_EDGE_MARGIN, MAX_LEVEL, WaveletFeatures
 
 NO_STRUCTURE = "no_structure"
 NO_ROTATION = "no_rotation_estimate"
@@ -119,7 +126,8 @@ class SegmentationParams:
         m1, m2: IT2-FCM fuzzifiers of eqs. (2)-(3); the paper gives none. Default 2 and 5.
         fcm_tol: IT2-FCM stops when no centre moves more than this many gray levels; default
             0.01, far below the one-level resolution of the labels.
-        fcm_max_iter: most IT2-FCM iterations; default 100.
+        fcm_max_iter: most IT2-FCM iterations, at most 1000
+            (:data:`~stabilizer.inputs.MAX_ITERATIONS`); default 100.
         warm_start: start the current frame's IT2-FCM from the reference's centres when its
             histogram gives as many seeds (the same scene converges in a few iterations);
             default True.
@@ -145,7 +153,7 @@ class SegmentationParams:
         check_number("m1", self.m1, 1.0, open_low=True)
         check_number("m2", self.m2, self.m1, open_low=True)  # eqs. (2)-(3): 1 < m1 < m2
         check_number("fcm_tol", self.fcm_tol, 0.0, open_low=True)
-        check_integer("fcm_max_iter", self.fcm_max_iter, 1)
+        check_integer("fcm_max_iter", self.fcm_max_iter, 1, MAX_ITERATIONS)
         check_flag("warm_start", self.warm_start)
         check_integer("morph_size", self.morph_size, 1, MAX_KERNEL_SIDE)
         if self.morph_size % 2 == 0:
@@ -198,11 +206,10 @@ class FeatureParams:
         if not isinstance(self.wavelet, str):
             raise ValueError(f"wavelet must be the name of a discrete PyWavelets wavelet; got "
                              f"{self.wavelet!r}")
-        # A 1280 x 1024 frame (the largest accepted) has 10 Haar levels.
-        check_integer("wavelet_level", self.wavelet_level, 1, 10)
+        check_integer("wavelet_level", self.wavelet_level, 1, MAX_LEVEL)
         check_number("significance", self.significance, 0.0, 1.0, open_high=True)
         check_flag("merge_details", self.merge_details)
-        check_integer("edge_margin", self.edge_margin, 0, 100)
+        check_integer("edge_margin", self.edge_margin, 0, MAX_EDGE_MARGIN)
         check_integer("min_hole_size", self.min_hole_size, 1, 1000)
         check_flag("weighted_fit", self.weighted_fit)
         check_number("min_axis_ratio", self.min_axis_ratio, 1.0)

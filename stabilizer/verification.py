@@ -21,7 +21,13 @@ import cv2
 import numpy as np
 
 from stabilizer.fncc import MaskedCorrelation, surface_peak
-from stabilizer.inputs import MAX_SIGMA_PX, check_angles, check_integer, check_number
+from stabilizer.inputs import (
+    MAX_ITERATIONS,
+    MAX_SIGMA_PX,
+    check_angles,
+    check_integer,
+    check_number,
+)
 from stabilizer.motion import (
     Motion,
     image_centre,
@@ -85,7 +91,8 @@ class VerificationParams:
             objects: disparity grows as 1 / depth) do not outweigh all the others. Default 5.
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
-            termination epsilon of ``cv2.findTransformECC``). Default 10.
+            termination epsilon of ``cv2.findTransformECC``). At most 1000
+            (:data:`~stabilizer.inputs.MAX_ITERATIONS`). Default 10.
         full_resolution_offset_deg: when the climb, at half resolution, ends more than this
             from the estimate in rotation, it goes on from there at full resolution, where the
             optimum may lie a few degrees farther: test 3 then judges the estimate against the
@@ -167,7 +174,7 @@ class VerificationParams:
             check_number(name, getattr(self, name), 0.0)
         check_number("sigma_px", self.sigma_px, 0.0, MAX_SIGMA_PX, open_low=True)
         check_number("clip_factor", self.clip_factor, 0.0, open_low=True)
-        check_integer("optimum_iterations", self.optimum_iterations, 1)
+        check_integer("optimum_iterations", self.optimum_iterations, 1, MAX_ITERATIONS)
         for name in ("full_resolution_offset_deg", "full_resolution_travel_deg"):
             if getattr(self, name) != math.inf:  # math.inf: never
                 check_number(name, getattr(self, name), 0.0)

@@ -39,6 +39,14 @@ import cv2
 import numpy as np
 import pywt
 
+#: Most decomposition levels: each halves the subbands, and ten take a 1024-pixel side to one
+#: pixel; deeper levels only add empty subbands (a million levels ran for minutes).
+MAX_LEVEL = 10
+#: Widest ``edge_margin`` (pixels): a margin of 100 on every side leaves nothing of a frame the
+#: methods are made for (the SR4000's 176 x 144); its dilation kernel grows as its square (10^6
+#: asked for 4 TB).
+MAX_EDGE_MARGIN = 100
+
 
 @dataclass(frozen=True)
 class PointSets:
@@ -174,14 +182,15 @@ class WaveletFeatures:
         PyWavelets wavelet name. Default ``"haar"`` (keeps object edges sharp, cheap; the paper
         names none).
     level : int, optional
-        Decomposition levels. Default 2, the paper's ("the level set was determined to be
-        two").
+        Decomposition levels, at most :data:`MAX_LEVEL` (10). Default 2, the paper's ("the
+        level set was determined to be two").
     significance : float, optional
         A coefficient is significant if its magnitude exceeds this fraction of the largest
         magnitude in its subband. Default 0 (every non-zero coefficient).
     edge_margin : int, optional
         Detail points within this many pixels of an invalid pixel or of the image border are
-        dropped (their edge is the measurement's, not the scene's). Default 2.
+        dropped (their edge is the measurement's, not the scene's); at most
+        :data:`MAX_EDGE_MARGIN` (100). Default 2.
     merge_details : bool, optional
         One point set per level for the three detail subbands (see the module docstring)
         instead of one per subband. Default True.
@@ -199,12 +208,12 @@ class WaveletFeatures:
                  edge_margin: int = 2, merge_details: bool = True):
         if wavelet not in pywt.wavelist(kind="discrete"):
             raise ValueError(f"wavelet must be a discrete PyWavelets wavelet; got {wavelet!r}")
-        if int(level) < 1:
-            raise ValueError(f"level must be >= 1; got {level}")
+        if not 1 <= int(level) <= MAX_LEVEL:
+            raise ValueError(f"level must be from 1 to {MAX_LEVEL}; got {level}")
         if not (0.0 <= significance < 1.0):
             raise ValueError(f"significance must be in [0, 1); got {significance}")
-        if edge_margin < 0:
-            raise ValueError(f"edge_margin must be >= 0; got {edge_margin}")
+        if not 0 <= edge_margin <= MAX_EDGE_MARGIN:
+            raise ValueError(f"edge_margin must be from 0 to {MAX_EDGE_MARGIN}; got {edge_margin}")
         self.wavelet = pywt.Wavelet(wavelet)
         self.level = int(level)
         self.significance = float(significance)

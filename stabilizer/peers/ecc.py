@@ -40,7 +40,7 @@ import math
 import cv2
 import numpy as np
 
-from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
+from stabilizer.inputs import MAX_ITERATIONS, MAX_KERNEL_SIDE, check_integer, check_number
 from stabilizer.motion import Motion, motion_from_matrix, motion_matrix
 from stabilizer.peers.preparation import FramePreparation, frame_problem, peer_min_side
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
@@ -62,7 +62,8 @@ class EccEstimator:
     levels : int, optional
         Pyramid levels (1 = full resolution only), at most :data:`MAX_LEVELS`. Default 3.
     iterations : int, optional
-        Most ECC iterations per level. Default 50.
+        Most ECC iterations per level, at most 1000 (:data:`~stabilizer.inputs.MAX_ITERATIONS`).
+        Default 50.
     epsilon : float, optional
         ECC stops when the correlation gains less than this. Default 1e-4.
     gauss_filter_size : int, optional
@@ -100,7 +101,7 @@ class EccEstimator:
                  start_angles_deg: tuple[float, ...] = START_ANGLES_DEG,
                  max_starts: int = 3, clip_sigmas: float = 1.5, clip_min_spread: float = 20.0):
         check_integer("levels", levels, 1, MAX_LEVELS)
-        check_integer("iterations", iterations, 1)
+        check_integer("iterations", iterations, 1, MAX_ITERATIONS)
         check_number("epsilon", epsilon, 0.0, open_low=True)
         check_integer("gauss_filter_size", gauss_filter_size, 1, MAX_KERNEL_SIDE)
         if gauss_filter_size % 2 == 0:

@@ -75,7 +75,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from stabilizer.inputs import MAX_KERNEL_SIDE, check_integer, check_number
+from stabilizer.inputs import MAX_ITERATIONS, MAX_KERNEL_SIDE, check_integer, check_number
 from stabilizer.motion import Motion, image_centre, rotation_matrix, transform_points
 from stabilizer.peers.preparation import (
     FramePreparation,
@@ -113,7 +113,7 @@ class IcpEstimator:
     overlap : float, optional
         Fraction of the gated matches kept, the closest ones. Default 1 (all).
     max_iterations : int, optional
-        Per start. Default 30.
+        Per start, at most 1000 (:data:`~stabilizer.inputs.MAX_ITERATIONS`). Default 30.
     tolerance_deg, tolerance_px : float, optional
         Convergence when one step changes less. Defaults 0.05 and 0.05 (0.05 deg moves a pixel
         at the image corner by 0.1 px).
@@ -187,7 +187,7 @@ class IcpEstimator:
         check_integer("max_points", max_points, 2)
         check_number("max_distance_px", max_distance_px, 0.0, open_low=True)
         check_number("overlap", overlap, 0.0, 1.0, open_low=True)
-        check_integer("max_iterations", max_iterations, 1)
+        check_integer("max_iterations", max_iterations, 1, MAX_ITERATIONS)
         check_number("tolerance_deg", tolerance_deg, 0.0)
         check_number("tolerance_px", tolerance_px, 0.0)
         check_integer("max_starts", max_starts, 1)

@@ -38,6 +38,14 @@ from stabilizer.peers.preparation import (
 )
 from stabilizer.rigid_fit import fit_rigid
 
+#: Most keypoints kept per frame: OpenCV takes the count as a C int (a larger one was a
+#: cv2.error); a count above a frame's keypoints keeps them all, as 0 does.
+MAX_FEATURES = 2**31 - 1
+#: Most RANSAC hypotheses: 10,000 pairs of matches hold a pair of inliers with probability
+#: 99.9% down to 2.6% inliers (log(0.001) / log(1 - 0.026^2)); every hypothesis scores every
+#: match, so memory grows as their product (10^9 asked for 5 GB at 1,100 matches).
+MAX_HYPOTHESES = 10_000
+
 
 class SiftEstimator:
     """Rigid motion from SIFT matches against a reference analysed once.
@@ -63,12 +71,14 @@ class SiftEstimator:
         SIFT's contrast threshold. Default 0.003, far below OpenCV's 0.04: disparity images
         have few, low-contrast corners (walls differ by a few gray levels).
     max_features : int, optional
-        Keep the best N keypoints per frame (by response); 0 = all (OpenCV's default). Default
+        Keep the best N keypoints per frame (by response); 0 = all (OpenCV's default); at most
+        :data:`MAX_FEATURES` (2**31 - 1). Default
         4000: matching is brute force, quadratic in the keypoints, and a frame of noise has
         about 600 per 176 x 144 pixels (30,000 at 1280 x 1024 took 40-65 s a frame); walking
         frames have about 100, so the cap binds only on large or noisy images.
     max_hypotheses : int, optional
-        Most two-match rigid hypotheses RANSAC scores. Default 2000.
+        Most two-match rigid hypotheses RANSAC scores, at most :data:`MAX_HYPOTHESES` (10,000).
+        Default 2000.
     edge_threshold : float, optional
         SIFT's edge threshold (keypoints whose principal curvature ratio exceeds it lie on an
         edge and are dropped). Default 20, OpenCV's 10 doubled: a disparity image's structure
@@ -97,8 +107,8 @@ class SiftEstimator:
         check_integer("min_inliers", min_inliers, 2)  # a rigid motion needs 2 points
         check_integer("border_margin_px", border_margin_px, 0, MAX_KERNEL_SIDE)
         check_number("contrast_threshold", contrast_threshold, 0.0)
-        check_integer("max_features", max_features, 0)  # 0: every feature
-        check_integer("max_hypotheses", max_hypotheses, 1)
+        check_integer("max_features", max_features, 0, MAX_FEATURES)  # 0: every feature
+        check_integer("max_hypotheses", max_hypotheses, 1, MAX_HYPOTHESES)
         check_number("edge_threshold", edge_threshold, 0.0, open_low=True)
         check_median_ksize(median_ksize)
         self.median_ksize = median_ksize

@@ -160,7 +160,9 @@ def test_cleaner_equals_the_label_by_label_rule_and_counts_its_areas(seed):
 
 
 @pytest.mark.parametrize("kwargs", [{"m1": 1.0}, {"m1": 3.0, "m2": 2.0}, {"tol": 0},
-                                    {"max_iter": 0}])
+                                    {"max_iter": 0},
+                                    # with a tiny tolerance, it ran for minutes
+                                    {"max_iter": 10**9, "tol": 1e-300}])
 def test_bad_fcm_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         IT2FCM(**kwargs)
@@ -171,6 +173,8 @@ def test_bad_cleaner_parameters_raise():
         LabelCleaner(morph_size=4)
     with pytest.raises(ValueError):
         LabelCleaner(min_area=-1)
+    with pytest.raises(ValueError, match="morph_size"):  # a kernel of a terabyte
+        LabelCleaner(morph_size=10**6 + 1)
 
 
 def _textbook_fit(level_counts, seeds, m1, m2, tol, max_iter):

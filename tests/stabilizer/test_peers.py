@@ -195,6 +195,10 @@ def test_diagnostics_are_reported(method):
     ("ecc", {"levels": 0}), ("ecc", {"gauss_filter_size": 4}), ("ecc", {"max_starts": 0}),
     ("fourier_mellin", {"angle_bins": 2}), ("fourier_mellin", {"median_ksize": 6}),
     ("fourier_mellin", {"clip_sigmas": -1.0}), ("ecc", {"clip_min_spread": 0.0}),
+    # Unbounded, these ran for ever (ICP on a noise frame), asked for gigabytes or failed in
+    # OpenCV.
+    ("icp", {"max_iterations": 10**9}), ("ecc", {"iterations": 10**9}),
+    ("sift", {"max_hypotheses": 10**9}), ("sift", {"max_features": 10**12}),
 ])
 def test_bad_parameters_are_value_errors(method, params):
     with pytest.raises(ValueError):

@@ -264,6 +264,7 @@ def test_odd_frames_never_crash(frame):
     # Unbounded, these asked for gigabytes or ran for minutes.
     (TranslationParams, {"ncc_sigma": 1e9}), (SegmentationParams, {"morph_size": 100_001}),
     (ThresholdParams, {"bandwidth_deg": 1e5}), (ThresholdParams, {"resolution_deg": 1e-7}),
+    (SegmentationParams, {"fcm_max_iter": 10**9}),
 ])
 def test_bad_parameters_are_value_errors(group, params):
     with pytest.raises(ValueError, match=next(iter(params))):

@@ -173,7 +173,10 @@ def test_off_is_the_paper_pipeline():
                                     {"max_shift_disagreement_px": math.nan},
                                     {"extra_pass_trigger_deg": "5"}, {"wide_search_px": True},
                                     {"clip_sigmas": math.inf}, {"edge_tie_margin": -math.inf},
-                                    {"doubtful_offset_deg": math.nan}])
+                                    {"doubtful_offset_deg": math.nan},
+                                    # Unbounded: the paper's pipeline's passes cycled for ever.
+                                    {"common_disc_passes": 10**6}, {"extra_disc_passes": 10**6},
+                                    {"search_max_steps": 10**9}])
 def test_bad_refinement_parameters_are_value_errors(params):
     with pytest.raises(ValueError, match=next(iter(params))):
         Refinements(**params)

@@ -602,7 +602,8 @@ def test_thresholds_are_parameters():
                                  dict(sigma_px=1e9),  # a kernel of gigabytes
                                  dict(convincing_correlation="x"), dict(outside_margin=None),
                                  dict(depth_tolerance_share=math.nan),
-                                 dict(optimum_iterations=2.5)])
+                                 dict(optimum_iterations=2.5),
+                                 dict(optimum_iterations=10**9)])
 def test_bad_thresholds_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         VerificationParams(**bad)

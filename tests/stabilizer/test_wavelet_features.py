@@ -148,7 +148,9 @@ def test_significance_drops_weak_coefficients():
 
 
 @pytest.mark.parametrize("kwargs", [{"wavelet": "nope"}, {"level": 0}, {"significance": 1.0},
-                                    {"edge_margin": -1}])
+                                    {"edge_margin": -1},
+                                    # Unbounded, these ran for minutes or asked for terabytes.
+                                    {"level": 10**6}, {"edge_margin": 10**6}])
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         WaveletFeatures(**kwargs)

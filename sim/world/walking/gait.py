@@ -21,6 +21,15 @@ SOLE_HALF_WIDTH_M = 0.0375
 #: Largest angle of the gait's joint motions and of a step's turn (deg), either way: a quarter
 #: turn, beyond every waist and neck joint's range.
 MAX_GAIT_ANGLE_DEG = 90.0
+#: Largest ankle correction per radian of torso tilt: the CoM passes the sole's edge at a roll of
+#: 6.5 deg (atan(0.0375 / 0.33)), for which a gain of 5 already asks for the ankle roll's whole
+#: range (0.6 rad, robot_models/humanoid/README.md); a larger gain only drives it to its stop.
+MAX_TILT_ANKLE_GAIN = 5.0
+#: Largest ankle correction per unit torso rate (s): a robot tipping over the sole's edge turns
+#: at about sqrt(g / z_c) times its tilt, 0.6 rad/s at 6.5 deg, for which 1 s already asks for
+#: the ankle roll's whole range (in pitch the sole's 0.065 m half-length and the ankle's 1.2 rad
+#: give about the same).
+MAX_GYRO_ANKLE_GAIN_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -99,6 +108,14 @@ class GaitParams:
             if abs(getattr(self, name)) > MAX_GAIT_ANGLE_DEG:
                 raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
                                  f"allowed: -{MAX_GAIT_ANGLE_DEG:g} to {MAX_GAIT_ANGLE_DEG:g} deg")
+        # Negative gains turn the ankle with the tilt, which tips the robot further.
+        for name, most, unit in (("gyro_ankle_pitch_gain", MAX_GYRO_ANKLE_GAIN_S, " s"),
+                                 ("gyro_ankle_roll_gain", MAX_GYRO_ANKLE_GAIN_S, " s"),
+                                 ("tilt_ankle_gain", MAX_TILT_ANKLE_GAIN, "")):
+            if not 0.0 <= getattr(self, name) <= most:
+                raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
+                                 f"allowed: 0 to {most:g}{unit} (the ankle's range at the tilt "
+                                 f"that tips the robot over)")
         if self.com_height_m > MAX_COM_HEIGHT_M:
             raise ValueError(f"GaitParams.com_height_m={self.com_height_m!r} is out of range; "
                              f"allowed: 0 to {MAX_COM_HEIGHT_M} m")
