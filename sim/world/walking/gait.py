@@ -32,6 +32,24 @@ MAX_TILT_ANKLE_GAIN = 5.0
 MAX_GYRO_ANKLE_GAIN_S = 1.0
 
 
+#: The bounds of the fields the robot's build limits: (least, most, unit and why), checked after
+#: the fields that must be positive are.
+_RANGES = {
+    **{name: (0.0, LEG_LENGTH_M, " m (the leg's length)")
+       for name in ("step_length_max_m", "step_width_m", "step_height_m")},
+    "lateral_sway_m": (-SOLE_HALF_WIDTH_M, SOLE_HALF_WIDTH_M, " m (half the sole's width)"),
+    **{name: (-MAX_GAIT_ANGLE_DEG, MAX_GAIT_ANGLE_DEG, " deg")
+       for name in ("step_yaw_max_deg", "torso_lean_deg", "waist_roll_amp_deg",
+                    "waist_yaw_amp_deg", "head_nod_amp_deg", "arm_swing_deg")},
+    # Negative gains turn the ankle with the tilt, which tips the robot further.
+    **{name: (0.0, MAX_GYRO_ANKLE_GAIN_S, " s (the ankle's range at the tilt that tips the "
+                                         "robot over)")
+       for name in ("gyro_ankle_pitch_gain", "gyro_ankle_roll_gain")},
+    "tilt_ankle_gain": (0.0, MAX_TILT_ANKLE_GAIN,
+                        " (the ankle's range at the tilt that tips the robot over)"),
+}
+
+
 @dataclass(frozen=True)
 class GaitParams:
     """Parameters of the ZMP-preview walking gait.
@@ -95,27 +113,10 @@ class GaitParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"GaitParams.{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("step_length_max_m", "step_width_m", "step_height_m"):
-            if getattr(self, name) > LEG_LENGTH_M:
+        for name, (low, high, unit) in _RANGES.items():
+            if not low <= getattr(self, name) <= high:
                 raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
-                                 f"allowed: 0 to {LEG_LENGTH_M} m (the leg's length)")
-        if abs(self.lateral_sway_m) > SOLE_HALF_WIDTH_M:
-            raise ValueError(f"GaitParams.lateral_sway_m={self.lateral_sway_m!r} is out of "
-                             f"range; allowed: -{SOLE_HALF_WIDTH_M} to {SOLE_HALF_WIDTH_M} m "
-                             f"(half the sole's width)")
-        for name in ("step_yaw_max_deg", "torso_lean_deg", "waist_roll_amp_deg",
-                     "waist_yaw_amp_deg", "head_nod_amp_deg", "arm_swing_deg"):
-            if abs(getattr(self, name)) > MAX_GAIT_ANGLE_DEG:
-                raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
-                                 f"allowed: -{MAX_GAIT_ANGLE_DEG:g} to {MAX_GAIT_ANGLE_DEG:g} deg")
-        # Negative gains turn the ankle with the tilt, which tips the robot further.
-        for name, most, unit in (("gyro_ankle_pitch_gain", MAX_GYRO_ANKLE_GAIN_S, " s"),
-                                 ("gyro_ankle_roll_gain", MAX_GYRO_ANKLE_GAIN_S, " s"),
-                                 ("tilt_ankle_gain", MAX_TILT_ANKLE_GAIN, "")):
-            if not 0.0 <= getattr(self, name) <= most:
-                raise ValueError(f"GaitParams.{name}={getattr(self, name)!r} is out of range; "
-                                 f"allowed: 0 to {most:g}{unit} (the ankle's range at the tilt "
-                                 f"that tips the robot over)")
+                                 f"allowed: {low:g} to {high:g}{unit}")
         if self.com_height_m > MAX_COM_HEIGHT_M:
             raise ValueError(f"GaitParams.com_height_m={self.com_height_m!r} is out of range; "
                              f"allowed: 0 to {MAX_COM_HEIGHT_M} m")
