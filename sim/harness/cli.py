@@ -83,8 +83,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.scenario import load_scenario
+    from sim.harness.threads import check_local_workers
 
-    load_scenario(args.scenario)  # a bad scenario is reported before any folder is made
+    # A bad scenario or worker count is reported before any folder is made.
+    load_scenario(args.scenario)
+    check_local_workers(args.workers)
     out_dir = prepare_output_dir(args.out or DEFAULT_RESULTS / scenario_name(args.scenario))
     metrics = run(RunConfig(scenario=args.scenario, out_dir=str(out_dir), methods=args.methods,
                             record=not args.no_record, max_frames=args.max_frames,
@@ -238,7 +241,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 
-    backend = command_line_backend(args.ray, args.ray_address)
+    backend = command_line_backend(args.ray, args.ray_address, args.workers)
     spec = load_sweep(args.sweep_file)
     out_dir = prepare_output_dir(args.out or default_sweep_dir(spec, DEFAULT_RESULTS))
     return run_on_command_line("sweep", run_sweep, spec, out_dir, backend, args.workers,

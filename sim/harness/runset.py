@@ -111,13 +111,19 @@ def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> 
     return str(found.resolve()) if is_path else entry
 
 
-def command_line_backend(ray: bool, ray_address: str | None) -> str:
+def command_line_backend(ray: bool, ray_address: str | None, workers: int | None) -> str:
     """The backend of ``--ray`` ("ray" or "local"); a ValueError for ``--ray-address`` without
-    ``--ray``, which would otherwise go unused while the runs stay on this machine."""
+    ``--ray``, which would otherwise go unused while the runs stay on this machine, and for
+    more local ``--workers`` than :func:`~sim.harness.threads.check_local_workers` allows
+    (before any folder is made)."""
+    from sim.harness.threads import check_local_workers
+
     if ray_address is not None and not ray:
         raise ValueError(f"--ray-address needs --ray (got --ray-address {ray_address} alone); "
                          f"accepted: --ray --ray-address ADDRESS, or no --ray-address to run "
                          f"on this machine")
+    if not ray:
+        check_local_workers(workers)
     return "ray" if ray else "local"
 
 

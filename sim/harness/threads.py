@@ -54,15 +54,37 @@ def single_thread_environment() -> Iterator[None]:
                 os.environ[name] = value
 
 
-def worker_count(workers: int | None, wanted: int) -> int:
-    """``workers`` when given (a ValueError unless an integer >= 1); else ``wanted``
-    processes, at most one per core this process may run on, at least 1."""
-    if workers is not None:
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
-        return workers
+#: Local worker processes allowed per core: more only share the cores, each with its own
+#: copy of the simulator and the methods (hundreds of MB), until memory runs out.
+WORKERS_PER_CORE = 4
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (at least 1)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return max(1, min(wanted, cores or 1))
+    return max(1, cores or 1)
+
+
+def check_local_workers(workers: int | None) -> None:
+    """A ValueError unless ``workers`` is None or an integer from 1 to :data:`WORKERS_PER_CORE`
+    times :func:`usable_cores`: the number of local worker processes asked for."""
+    most = WORKERS_PER_CORE * usable_cores()
+    if workers is None:
+        return
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= most:
+        raise ValueError(f"workers {workers!r}: accepted: an integer from 1 to {most} "
+                         f"({WORKERS_PER_CORE} per core of the {usable_cores()} this process "
+                         f"may run on; more local processes only share the cores and add "
+                         f"memory)")
+
+
+def worker_count(workers: int | None, wanted: int) -> int:
+    """``workers`` when given (checked by :func:`check_local_workers`); else ``wanted``
+    processes, at most one per core this process may run on, at least 1."""
+    check_local_workers(workers)
+    if workers is not None:
+        return workers
+    return max(1, min(wanted, usable_cores()))
 
 
 def single_thread_pool(processes: int) -> "WorkerPool":

@@ -58,7 +58,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     from sim.harness.suite.run import check_estimates, default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
-    backend = command_line_backend(args.ray, args.ray_address)
+    backend = command_line_backend(args.ray, args.ray_address, args.workers)
     spec = load_suite(args.suite_file)
     estimates = estimates_by_name(args.estimates)
     check_estimates(spec, estimates)  # before any folder is made

@@ -151,6 +151,8 @@ def differences_markdown(figures: dict) -> str:
     def figure(name: str) -> str:
         return FIGURES[name] + (" (points)" if name == FAILURE_RATE else "")
 
+    if not figures["differences"]:
+        return "No pairs to compare: the suite scores one method."
     return markdown_table(
         ("First", "Second", "Figure", "First - second", f"{CONFIDENCE_LEVEL:.0%} interval", "n",
          "Verdict"),

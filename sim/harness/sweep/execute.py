@@ -31,7 +31,8 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
                                     plan_sweep, split_done)
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
-from sim.harness.threads import limit_threads, single_thread_environment_vars
+from sim.harness.threads import (check_local_workers, limit_threads,
+                                 single_thread_environment_vars)
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
@@ -85,9 +86,11 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
-    if workers is not None and (not is_int(workers) or workers < 1):
-        raise ValueError(f"workers must be an integer >= 1 (or None for every core); "
-                         f"got {workers!r}")
+    if backend == "local":
+        check_local_workers(workers)
+    elif workers is not None and (not is_int(workers) or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1 (or None for every free CPU of "
+                         f"the cluster); got {workers!r}")
     if backend == "ray":
         _import_ray()  # fail before anything is written if the extra is missing
     started = time.time()

@@ -186,6 +186,18 @@ def test_a_bad_count_is_refused(command, option, count, capsys):
     assert err.count("\n") == 1 and f"(usage: egostab {command[0]} --help)" in err
 
 
+@pytest.mark.parametrize("command", [["run", str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")],
+                                     ["sweep", str(SCENARIOS_DIR / "sweeps" / "noise_sweep.toml")],
+                                     ["suite", str(SCENARIOS_DIR / "suites" / "ci_suite.toml")]])
+def test_more_local_workers_than_a_few_per_core_are_refused_before_any_work(command, tmp_path,
+                                                                            capsys):
+    out = tmp_path / "out"
+    assert main([*command, "--out", str(out), "--workers", "100000"]) == 2
+    assert "workers 100000: accepted: an integer from 1 to" in _one_line_error(capsys,
+                                                                                 command[0])
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("arguments, accepted", [
     (["run", "--seed", "-1"], "an integer from 0 to 9223372036854775807"),
     (["record", "--seed", str(2**63)], "an integer from 0 to 9223372036854775807"),

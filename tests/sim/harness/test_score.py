@@ -94,6 +94,15 @@ def test_a_method_that_cannot_be_loaded_is_refused_before_any_work(folders, tmp_
     assert not (tmp_path / "out").exists()
 
 
+def test_more_workers_than_a_few_per_core_are_refused_before_any_work(folders, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["score", str(folders / "sequence"), "--out", str(out), "--workers",
+                 "100000"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("egostab score: error: workers 100000: accepted: an integer from 1 to")
+    assert "\n" not in err and not out.exists()
+
+
 def test_chunks_are_cut_only_where_the_reference_changes():
     references = [0] * 5 + [5] * 4 + [9] * 6
     chunks = reference_chunks(references, 3)

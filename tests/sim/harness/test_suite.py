@@ -287,6 +287,16 @@ def test_paired_differences_say_which_method_is_lower_and_whether_the_data_say_s
     assert "| t2fuzzy | sift | Failure rate (points) | 0.0 | [0.0, 0.0] | 12 |" in result.markdown
 
 
+def test_a_suite_of_one_method_says_there_is_nothing_to_compare(tmp_path):
+    spec = small_spec(methods=["t2fuzzy"],
+                      sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
+    result = write_suite_outputs(tmp_path, spec, outcomes_of(
+        spec, tmp_path, [{"t2fuzzy": 0.1}, {"t2fuzzy": 0.2}]))
+    assert result.figures["differences"] == []
+    assert "No pairs to compare: the suite scores one method." in result.markdown
+    assert "| First | Second |" not in result.markdown
+
+
 def test_few_sequences_give_intervals_but_no_verdict(tmp_path):
     spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6, 7]}])
     errors = [{"t2fuzzy": 0.1 * i, "sift": 0.1 * i + 1.0} for i in range(3)]
@@ -337,7 +347,7 @@ def test_a_rescore_interrupted_at_once_keeps_the_earlier_runs_in_the_tables(tmp_
 def test_bad_backend_and_workers_are_refused(tmp_path):
     with pytest.raises(ValueError, match="unknown backend .dask.; accepted: local, ray"):
         run_suite(small_spec(), tmp_path, backend="dask")
-    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+    with pytest.raises(ValueError, match=r"workers \S+: accepted: an integer from 1 to \d+"):
         run_suite(small_spec(), tmp_path, workers=0)
 
 

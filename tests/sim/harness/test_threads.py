@@ -6,7 +6,8 @@ import sys
 
 import pytest
 
-from sim.harness.threads import THREAD_VARIABLES, single_thread_pool, worker_count
+from sim.harness.threads import (THREAD_VARIABLES, WORKERS_PER_CORE, single_thread_pool,
+                                 worker_count)
 
 PROBE = ("import cv2, numpy, os, threadpoolctl; "
          "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info()]; "
@@ -50,8 +51,17 @@ def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ig
 
 def test_a_worker_count_given_is_kept_and_checked():
     assert worker_count(3, wanted=1) == 3
-    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+    with pytest.raises(ValueError, match=r"workers \S+: accepted: an integer from 1 to \d+"):
         worker_count(0, wanted=2)
+
+
+def test_local_workers_are_at_most_a_few_per_core(monkeypatch):
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    most = 2 * WORKERS_PER_CORE
+    assert worker_count(most, wanted=1) == most
+    with pytest.raises(ValueError, match=rf"workers {most + 1}: accepted: an integer from 1 to "
+                                         rf"{most} \({WORKERS_PER_CORE} per core of the 2 "):
+        worker_count(most + 1, wanted=1)
 
 
 @pytest.mark.parametrize("cores, wanted, expected", [(2, 6, 2), (8, 6, 6), (2, 1, 1), (1, 6, 1),
