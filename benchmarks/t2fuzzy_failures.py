@@ -48,8 +48,6 @@ OFFICE_EARLY_TURN = [{"t": 0.0, "speed": 0.0}, {"t": 1.0, "speed": 0.1},
                      {"t": 4.0, "speed": 0.1, "yaw_rate": 7.162},
                      {"t": 16.566, "speed": 0.1, "yaw_rate": 0.0}]
 FRAMES = 300
-#: An ``ok`` estimate off by more than this is a large error (the issue's target).
-LARGE_DEG, LARGE_PX = 5.0, 10.0
 
 
 def before_refinements():
@@ -309,13 +307,15 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
 
 
 def _summary(motions, truth, truth_ok) -> dict:
+    from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
+
     status = np.array([m.status for m in motions])
     estimates = np.array([m.as_tuple() for m in motions])
     scored = (status == "ok") & truth_ok
     errors = np.abs(estimates - truth)[scored]
     errors[:, 0] = np.abs((estimates - truth)[scored, 0] + 180.0) % 360.0 - 180.0
     errors[:, 0] = np.abs(errors[:, 0])
-    large = (errors[:, 0] > LARGE_DEG) | (errors[:, 1:] > LARGE_PX).any(axis=1)
+    large = (errors[:, 0] > LARGE_ERROR_DEG) | (errors[:, 1:] > LARGE_ERROR_PX).any(axis=1)
     return {"mean": errors.mean(axis=0), "max": errors.max(axis=0), "large": int(large.sum()),
             "failures": float(np.mean(status != "ok"))}
 

@@ -33,7 +33,8 @@ from matplotlib.figure import Figure
 
 from sim.harness.atomic import atomic_path, prepare_output_dir, write_text_atomic
 from sim.harness.provenance import provenance
-from sim.harness.scoring import AXES, AXIS_UNITS, RECORD_FIELDS, FrameRecord, MethodScore, RunSummary
+from sim.harness.scoring import (AXES, AXIS_UNITS, LARGE_ERROR_DEG, LARGE_ERROR_PX, RECORD_FIELDS,
+                                 FrameRecord, MethodScore, RunSummary)
 
 FRAMES_CSV = "frames.csv"
 FAILURES_JSONL = "failures.jsonl"
@@ -122,17 +123,29 @@ def epe_table(scores: Mapping[str, MethodScore]) -> str:
                            "Variance", "Max", "Frames"), rows)
 
 
+#: Title of the count of "ok" estimates off by more than the large-error limits.
+LARGE_ERRORS_TITLE = f"Ok but off (> {LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px)"
+
+
+def large_errors_cell(n_large: int | None, n_scored: int) -> str:
+    """``n_large`` of ``n_scored`` "ok" estimates off by more than the large-error limits;
+    n/a when they were not counted (a metrics.json from before)."""
+    return "n/a" if n_large is None else f"{n_large} of {n_scored:,}"
+
+
 def reliability_table(scores: Mapping[str, MethodScore]) -> str:
-    """Failure rate, time per frame and ITF (compensated vs raw) per method."""
+    """Failure rate, "ok" estimates off by more than the large-error limits, time per frame and
+    ITF (compensated vs raw) per method."""
     rows = [(method, f"{format_number(100 * score.failure_rate, 1)}% ({score.n_failed}/"
                      f"{score.n_frames})",
              ", ".join(f"{status} {count}" for status, count in score.failures.items()) or "-",
-             str(score.n_truth_failed), format_number(score.ms_mean), format_number(score.ms_median),
+             str(score.n_truth_failed), large_errors_cell(score.n_large_errors, score.n_scored),
+             format_number(score.ms_mean), format_number(score.ms_median),
              format_number(score.itf_db), format_number(score.itf_raw_db))
             for method, score in scores.items()]
     return markdown_table(("Method", "Failure rate", "Reasons", "Truth failed",
-                            "ms/frame mean", "ms/frame median", "ITF compensated (dB)",
-                            "ITF raw (dB)"), rows)
+                            LARGE_ERRORS_TITLE, "ms/frame mean", "ms/frame median",
+                            "ITF compensated (dB)", "ITF raw (dB)"), rows)
 
 
 def cycle_table(summary: RunSummary) -> str:
@@ -499,8 +512,9 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
     Returns:
         Dicts with the keys "method", "frames", the mean and the variance of |error| of each
         axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "epe_mean_px",
-        "epe_above_floor_px", "failure_rate", "ms_per_frame", "itf_db" and "itf_raw_db"; a
-        figure metrics.json has none of is NaN.
+        "epe_above_floor_px", "failure_rate", "ms_per_frame", "itf_db", "itf_raw_db",
+        "scored_frames" and "large_errors" (``MethodScore.n_large_errors``: None when not
+        counted); a figure metrics.json has none of is NaN.
         A run that scored no frame (it fell at once) has no row.
     """
     scores = ((metrics or {}).get("summary") or {}).get("run") or {}
@@ -514,7 +528,8 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
                      "epe_mean_px": score.epe.mean,
                      "epe_above_floor_px": score.epe_above_floor_px,
                      "failure_rate": score.failure_rate, "ms_per_frame": score.ms_mean,
-                     "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db})
+                     "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db,
+                     "scored_frames": score.n_scored, "large_errors": score.n_large_errors})
     return rows
 
 

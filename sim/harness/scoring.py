@@ -34,6 +34,9 @@ AXES = ("rotation", "x", "y")
 AXIS_UNITS = {"rotation": "deg", "x": "px", "y": "px"}
 #: Name of the uncompensated stream in the ITF accumulator.
 RAW_STREAM = "raw"
+#: An "ok" estimate off the truth by more than this rotation (deg) or shift along an axis (px)
+#: is a large error: an "ok" that should not have been trusted (the limit of issue 15).
+LARGE_ERROR_DEG, LARGE_ERROR_PX = 5.0, 10.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,13 @@ class FrameRecord:
     def scored(self) -> bool:
         """True when both the estimate and the truth exist, so the errors are numbers."""
         return self.status == OK and self.truth_status == OK
+
+    @property
+    def large_error(self) -> bool:
+        """True when the estimate is scored and off by more than ``LARGE_ERROR_DEG`` in
+        rotation or ``LARGE_ERROR_PX`` along x or y."""
+        return self.scored and (self.err_angle_deg > LARGE_ERROR_DEG
+                                or max(self.err_dx_px, self.err_dy_px) > LARGE_ERROR_PX)
 
     def estimate_of(self, axis: str) -> float:
         return getattr(self, _ESTIMATE_FIELDS[axis])
@@ -181,6 +191,9 @@ class MethodScore:
         epe: ErrorStats of the per-frame mean end-point error (``FrameRecord.epe_px``) over
             the frames that have one.
         epe_floor_px: mean of the truth's own mean end-point error over the same frames.
+        n_large_errors: scored frames whose "ok" estimate is off by more than
+            ``LARGE_ERROR_DEG`` or ``LARGE_ERROR_PX`` (``FrameRecord.large_error``); None in
+            a metrics.json written before it was counted.
     """
 
     method: str
@@ -197,6 +210,7 @@ class MethodScore:
     failures: dict[str, int] = field(default_factory=dict)
     epe: ErrorStats = NO_ERRORS
     epe_floor_px: float = math.nan
+    n_large_errors: int | None = None
 
     @property
     def epe_above_floor_px(self) -> float:
@@ -207,7 +221,8 @@ class MethodScore:
     def from_dict(cls, data: Mapping[str, Any]) -> "MethodScore":
         """Inverse of ``dataclasses.asdict`` after a JSON round trip (None -> NaN).
 
-        A metrics.json written before the end-point error was scored loads with NaN EPE.
+        A metrics.json written before the end-point error was scored loads with NaN EPE, and
+        one written before large errors were counted with ``n_large_errors`` None.
         """
         values = dict(data)
         values["errors"] = {axis: ErrorStats.from_dict(values["errors"][axis]) for axis in AXES}
@@ -236,6 +251,7 @@ class MethodScore:
             epe=ErrorStats.of(record.epe_px for record in with_epe),
             epe_floor_px=(float(np.mean([record.truth_epe_px for record in with_epe]))
                           if with_epe else math.nan),
+            n_large_errors=sum(record.large_error for record in scored),
         )
 
 

@@ -2,7 +2,9 @@
 
 Per sequence and method the figures are the run's own (``sim.harness.report.score_rows``): the
 mean absolute error of rotation, x and y over the frames the method estimated, and its failure
-rate. How sequences count:
+rate; beside the means, the count over all sequences of "ok" estimates off by more than the
+large-error limits (``sim.harness.scoring.LARGE_ERROR_DEG``, ``LARGE_ERROR_PX``). How sequences
+count:
 
 - a sequence whose run scored no frame (it raised, or the robot fell at once) counts for no
   method; a run that fell later counts with the frames scored before the fall;
@@ -29,7 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sim.harness.atomic import write_text_atomic
-from sim.harness.report import MEAN_ERROR_COLUMNS, format_number, markdown_table, score_rows
+from sim.harness.report import (LARGE_ERRORS_TITLE, MEAN_ERROR_COLUMNS, format_number,
+                                large_errors_cell, markdown_table, score_rows)
 from sim.harness.runner import FELL
 from sim.harness.scoring import AXES, AXIS_UNITS
 from sim.harness.suite.spec import SuiteSpec
@@ -48,7 +51,7 @@ FIGURES = {**{MEAN_ERROR_COLUMNS[axis]: f"{axis.capitalize()} mean abs error ({A
            FAILURE_RATE: "Failure rate"}
 #: Columns of suite.csv.
 COLUMNS = ("sequence", "scenario", "scene", "gait", "scene_seed", "seed", "run_status",
-           "method", "frames", *FIGURES)
+           "method", "frames", *FIGURES, "scored_frames", "large_errors")
 COUNTING = ("A sequence whose run scored no frame counts for no method; a run that fell counts "
             "with the frames scored before the fall. A method with no successful estimate in a "
             "sequence has failure rate 1 there and no errors (its error means leave that "
@@ -86,7 +89,9 @@ def sequence_rows(outcomes: Sequence[RunOutcome], methods: Sequence[str]) -> lis
         for method in methods:
             score = scores.get(method, {})
             rows.append({**head, "method": method, "frames": score.get("frames", 0),
-                         **{figure: float(score.get(figure, math.nan)) for figure in FIGURES}})
+                         **{figure: float(score.get(figure, math.nan)) for figure in FIGURES},
+                         "scored_frames": score.get("scored_frames", 0),
+                         "large_errors": score.get("large_errors", 0)})
     return rows
 
 
@@ -95,8 +100,21 @@ def method_samples(rows: Sequence[dict], method: str, figure: str) -> list[float
     return [row[figure] for row in rows if row["method"] == method]
 
 
+def large_error_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str, dict]:
+    """Per method: "count", its "ok" estimates off by more than the large-error limits over all
+    sequences (None when a run's metrics.json did not count them), of "scored_frames"."""
+    totals = {}
+    for method in methods:
+        mine = [row for row in rows if row["method"] == method]
+        counts = [row["large_errors"] for row in mine]
+        totals[method] = {"count": None if None in counts else sum(counts),
+                          "scored_frames": sum(row["scored_frames"] for row in mine)}
+    return totals
+
+
 def suite_figures(rows: Sequence[dict], methods: Sequence[str]) -> dict:
-    """Per method the interval of each figure's mean; per pair of methods, of the difference."""
+    """Per method the interval of each figure's mean and its large errors; per pair of methods,
+    the interval of the difference."""
     means = {method: {figure: mean_interval(method_samples(rows, method, figure))
                       for figure in FIGURES} for method in methods}
     differences = []
@@ -111,7 +129,7 @@ def suite_figures(rows: Sequence[dict], methods: Sequence[str]) -> dict:
                                           and interval.excludes_zero())})
     return {"means": {method: {figure: interval.to_dict() for figure, interval in by.items()}
                       for method, by in means.items()},
-            "differences": differences}
+            "large_errors": large_error_totals(rows, methods), "differences": differences}
 
 
 def _value(figure: str, value: float) -> str:
@@ -133,9 +151,13 @@ def _interval_cell(figure: str, interval: dict) -> str:
 
 
 def means_markdown(figures: dict) -> str:
-    """Per method: each figure's mean over sequences with its 95% interval and n."""
-    return markdown_table(("Method", *FIGURES.values()),
-                          ([method, *(_interval_cell(f, by[f]) for f in FIGURES)]
+    """Per method: each figure's mean over sequences with its 95% interval and n, and its "ok"
+    estimates off by more than the large-error limits, of its scored frames."""
+    large = figures["large_errors"]
+    return markdown_table(("Method", *FIGURES.values(), f"{LARGE_ERRORS_TITLE}, all sequences"),
+                          ([method, *(_interval_cell(f, by[f]) for f in FIGURES),
+                            large_errors_cell(large[method]["count"],
+                                              large[method]["scored_frames"])]
                            for method, by in figures["means"].items()))
 
 
@@ -177,7 +199,7 @@ def table_csv(rows: Sequence[dict]) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(COLUMNS)
-    writer.writerows([("" if isinstance(row[c], float) and math.isnan(row[c])
+    writer.writerows([("" if row[c] is None or isinstance(row[c], float) and math.isnan(row[c])
                        else repr(row[c]) if isinstance(row[c], float) else str(row[c]))
                       for c in COLUMNS] for row in rows)
     return buffer.getvalue()

@@ -12,8 +12,8 @@ from sim.harness.atomic import atomic_path, write_text_atomic
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, failures_jsonl_text,
-                                markdown_table, read_metrics, score_rows, table_one,
-                                terminal_summary, write_run_outputs)
+                                large_errors_cell, markdown_table, read_metrics, score_rows,
+                                table_one, terminal_summary, write_run_outputs)
 from dataclasses import replace
 
 from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
@@ -368,3 +368,32 @@ def test_methods_whose_file_names_coincide_get_a_plot_each():
     names = estimates_plot_names(["t2fuzzy", "a/b", "a_b", "a|b", "a_b_2", "日本", "中国"])
     assert len(set(names)) == len(names)
     assert names[:3] == ["estimates_t2fuzzy.png", "estimates_a_b.png", "estimates_a_b_2.png"]
+
+
+def test_the_summary_counts_ok_estimates_off_by_more_than_the_large_error_limits(tmp_path):
+    records = _records(n_frames=10)
+    far = next(index for index, record in enumerate(records)
+               if record.method == "t2fuzzy" and record.scored)
+    truth = Motion(records[far].true_angle_deg, records[far].true_dx_px, records[far].true_dy_px)
+    records[far] = FrameRecord.score(
+        frame_index=records[far].frame_index, time_s=0.0, gait_cycle=0, reference_index=0,
+        method="t2fuzzy", estimate=Motion(truth.angle_deg, truth.dx + 12.0, truth.dy),
+        truth=GroundTruth.exact(truth, GRID, (144, 176)), ms=2.0)
+    summary = summarize(records)
+    files = write_run_outputs(tmp_path, scenario={}, records=records, summary=summary, meta={},
+                              status="complete", plots=False)
+    text = files.summary_md.read_text()
+    assert "| Truth failed | Ok but off (> 5° or 10 px) | ms/frame mean |" in text
+    n_scored = summary.run["t2fuzzy"].n_scored
+    assert f"| t2fuzzy | 0.0% (0/10) | - | 1 | 1 of {n_scored} |" in text
+    rows = {row["method"]: row for row in score_rows(files.metrics)}
+    assert (rows["t2fuzzy"]["large_errors"], rows["t2fuzzy"]["scored_frames"]) == (1, n_scored)
+    assert rows["sift"]["large_errors"] == 0
+
+
+def test_a_run_from_before_large_errors_were_counted_reads_n_a():
+    summary = summarize(_records(n_frames=4)).to_dict()
+    for data in summary["run"].values():
+        del data["n_large_errors"]
+    assert [row["large_errors"] for row in score_rows({"summary": summary})] == [None, None]
+    assert large_errors_cell(None, 4) == "n/a" and large_errors_cell(2, 1234) == "2 of 1,234"

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from sim.harness.ground_truth import GroundTruth
-from sim.harness.scoring import (AXES, RAW_STREAM, RECORD_FIELDS, ErrorStats, FrameRecord,
-                                 ItfAccumulator, MethodScore, masked_psnr_db, summarize)
+from sim.harness.scoring import (AXES, LARGE_ERROR_DEG, LARGE_ERROR_PX, RAW_STREAM,
+                                 RECORD_FIELDS, ErrorStats, FrameRecord, ItfAccumulator,
+                                 MethodScore, masked_psnr_db, summarize)
 from stabilizer.motion import Motion, apply_motion, compensate
 
 
@@ -230,3 +231,29 @@ def test_a_score_written_before_the_end_point_error_loads_with_nan_epe():
     score = MethodScore.from_dict(data)
     assert score.epe.n == 0 and math.isnan(score.epe.mean) and math.isnan(score.epe_floor_px)
     assert score.errors["rotation"].mean == 1.0
+
+
+def test_ok_estimates_beyond_the_large_error_limits_are_counted_per_method():
+    just = 1e-6
+    records = [
+        _record(0, "a", Motion(LARGE_ERROR_DEG + just, 0.0, 0.0), _truth()),
+        _record(1, "a", Motion(LARGE_ERROR_DEG - just, LARGE_ERROR_PX - just,
+                               -(LARGE_ERROR_PX - just)), _truth()),
+        _record(2, "a", Motion(0.0, 0.0, 0.0), _truth(dy=LARGE_ERROR_PX + 1.0)),
+        _record(3, "a", Motion(-170.0, 0.0, 0.0), _truth(angle=175.0)),  # 15 deg, wrapped
+        _record(4, "a", Motion(40.0, 0.0, 0.0), NO_TRUTH),  # not scored: no truth
+        _record(5, "a", Motion.failed("no_structure"), _truth()),
+        _record(0, "b", Motion(0.0, 0.0, 0.0), _truth()),
+    ]
+    assert [record.large_error for record in records] == [True, False, True, True, False, False,
+                                                          False]
+    summary = summarize(records)
+    assert summary.run["a"].n_large_errors == 3 and summary.run["b"].n_large_errors == 0
+    assert summary.to_dict()["run"]["a"]["n_large_errors"] == 3
+
+
+def test_a_score_written_before_large_errors_were_counted_loads_without_a_count():
+    data = summarize([_record(0, "a", Motion(9.0, 0.0, 0.0), _truth())]).to_dict()["run"]["a"]
+    assert MethodScore.from_dict(json.loads(json.dumps(data))).n_large_errors == 1
+    del data["n_large_errors"]
+    assert MethodScore.from_dict(data).n_large_errors is None

@@ -8,6 +8,7 @@ real metrics.json layout. The end-to-end test runs the shipped CI suite for real
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import re
@@ -295,6 +296,30 @@ def test_a_suite_of_one_method_says_there_is_nothing_to_compare(tmp_path):
     assert result.figures["differences"] == []
     assert "No pairs to compare: the suite scores one method." in result.markdown
     assert "| First | Second |" not in result.markdown
+
+
+def test_ok_estimates_off_by_more_than_the_limits_are_counted_over_all_sequences(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
+    # fake_metrics: every frame (4 a run) off by the error given, on every axis.
+    result = write_suite_outputs(tmp_path, spec, outcomes_of(
+        spec, tmp_path, [{"t2fuzzy": 12.0, "sift": 0.1}, {"t2fuzzy": 0.1, "sift": None}]))
+    assert result.figures["large_errors"] == {"t2fuzzy": {"count": 4, "scored_frames": 8},
+                                              "sift": {"count": 0, "scored_frames": 4}}
+    assert "Ok but off (> 5° or 10 px), all sequences |" in result.markdown
+    assert "(n=2) | 4 of 8 |" in result.markdown and "| 0 of 4 |" in result.markdown
+    rows = list(csv.DictReader(io.StringIO((tmp_path / TABLE_CSV).read_text())))
+    assert [(row["method"], row["scored_frames"], row["large_errors"]) for row in rows] == [
+        ("t2fuzzy", "4", "4"), ("sift", "4", "0"), ("t2fuzzy", "4", "0"), ("sift", "0", "0")]
+
+
+def test_runs_from_before_large_errors_were_counted_give_no_total(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
+    outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 12.0, "sift": 0.1}] * 2)
+    for method in outcomes[0].metrics["summary"]["run"].values():
+        del method["n_large_errors"]
+    result = write_suite_outputs(tmp_path, spec, outcomes)
+    assert result.figures["large_errors"]["t2fuzzy"] == {"count": None, "scored_frames": 8}
+    assert "(n=2) | n/a |" in result.markdown
 
 
 def test_few_sequences_give_intervals_but_no_verdict(tmp_path):
