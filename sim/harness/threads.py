@@ -68,14 +68,14 @@ def usable_cores() -> int:
 def check_local_workers(workers: int | None) -> None:
     """A ValueError unless ``workers`` is None or an integer from 1 to :data:`WORKERS_PER_CORE`
     times :func:`usable_cores`: the number of local worker processes asked for."""
-    most = WORKERS_PER_CORE * usable_cores()
     if workers is None:
         return
+    cores = usable_cores()
+    most = WORKERS_PER_CORE * cores
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= most:
         raise ValueError(f"workers {workers!r}: accepted: an integer from 1 to {most} "
-                         f"({WORKERS_PER_CORE} per core of the {usable_cores()} this process "
-                         f"may run on; more local processes only share the cores and add "
-                         f"memory)")
+                         f"({WORKERS_PER_CORE} per core of the {cores} this process may run "
+                         f"on; more local processes only share the cores and add memory)")
 
 
 def worker_count(workers: int | None, wanted: int) -> int:
