@@ -32,7 +32,7 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
 from sim.harness.threads import (check_local_workers, limit_threads,
-                                 single_thread_environment_vars)
+                                 single_thread_environment_vars, worker_count)
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
@@ -76,7 +76,7 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
             methods a finished run must have scored; see ``plan_sweep``).
         write_outputs: writes the tables from the outcomes and returns the result.
         backend: ``"local"`` (a process pool on this machine, spawn start method) or ``"ray"``.
-        workers: runs at a time; default: ``os.cpu_count()`` locally, the cluster's free CPUs
+        workers: runs at a time; default: one per usable core locally, the cluster's free CPUs
             on Ray.
         ray_address: for Ray: ``"auto"`` joins a running cluster, an address such as
             ``"ray://head:10001"`` a remote one; None uses ``$RAY_ADDRESS`` if set, else starts
@@ -150,7 +150,7 @@ def _run_local(pending: Sequence[SweepRun], run_fn, workers: int | None,
     error.
     """
     broken: list[SweepRun] = []
-    yield from _run_pool(pending, run_fn, min(workers or os.cpu_count() or 1, len(pending)),
+    yield from _run_pool(pending, run_fn, min(worker_count(workers, len(pending)), len(pending)),
                          broken)
     for sweep_run in broken:
         yield from _run_pool([sweep_run], run_fn, 1, None)

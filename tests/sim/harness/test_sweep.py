@@ -234,6 +234,17 @@ def test_bad_backend_and_workers_are_refused(tmp_path):
         run_sweep(small_spec(), tmp_path, workers=0, run_fn=fake_run)
 
 
+@pytest.mark.parametrize("workers, n_runs, expected", [(None, 4, 1), (3, 4, 3), (4, 2, 2)])
+def test_local_runs_at_a_time_default_to_the_usable_cores_and_never_exceed_the_runs(
+        monkeypatch, workers, n_runs, expected):
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    pools = []
+    monkeypatch.setattr(sweep_execute, "_run_pool",
+                        lambda pending, run_fn, processes, broken: pools.append(processes) or [])
+    list(sweep_execute._run_local(["run"] * n_runs, fake_run, workers, None))
+    assert pools == [expected]
+
+
 def test_missing_ray_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(__import__("sys").modules, "ray", None)  # import ray -> ImportError
     with pytest.raises(ImportError, match=r'pip install -e "\.\[cluster\]"'):
