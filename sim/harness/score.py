@@ -84,7 +84,7 @@ def score(config: ScoreConfig) -> dict:
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict
     from sim.harness.sequence import SEQUENCE_JSON, load_sequence
-    from sim.harness.threads import worker_count
+    from sim.harness.threads import usable_cores, worker_count
 
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
@@ -92,7 +92,7 @@ def score(config: ScoreConfig) -> dict:
                     config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
     check_methods(methods)
-    workers = worker_count(config.workers, (os.cpu_count() or 1) if methods else 1)
+    workers = worker_count(config.workers, usable_cores() if methods else 1)
     clash = sorted(set(methods) & set(file_methods))
     if clash:
         raise ValueError(f"{', '.join(clash)} named both as a method and as an estimates file; "
