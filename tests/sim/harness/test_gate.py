@@ -14,7 +14,7 @@ TRUTH_FIGURES = {"angle_mean_deg": 1.5, "dx_mean_px": -4.0, "dy_mean_px": 2.0,
                  "failed_frames": 0}
 BASE = {"ci_a": {"t2fuzzy": {"rotation_mean_deg": 0.40, "x_mean_px": 0.60, "y_mean_px": 0.40,
                              "rotation_bias_deg": -0.10, "x_bias_px": 0.20, "y_bias_px": 0.0,
-                             "failed_frames": 3},
+                             "failed_frames": 3, "large_error_frames": 1},
                  gate.TRUTH: TRUTH_FIGURES}}
 
 
@@ -29,12 +29,12 @@ def _verdicts(current):
 
 def test_same_figures_pass():
     rows = gate.compare(BASE, BASE)
-    assert len(rows) == 11 and {row["verdict"] for row in rows} == {gate.WITHIN}
+    assert len(rows) == 12 and {row["verdict"] for row in rows} == {gate.WITHIN}
 
 
 @pytest.mark.parametrize("metric, worse, better", [
     ("rotation_mean_deg", 0.40 + 1, 0.40 - 1), ("x_mean_px", 0.60 + 1, 0.60 - 1),
-    ("failed_frames", 3 + 1, 3 - 1),
+    ("failed_frames", 3 + 1, 3 - 1), ("large_error_frames", 1 + 1, 1 - 1),
     ("x_bias_px", 0.20 + 1, 0.20 - 1),          # further from 0, or nearer
     ("rotation_bias_deg", -0.10 - 1, -0.10 + 1),
 ])
@@ -44,7 +44,8 @@ def test_a_figure_moved_beyond_its_tolerance_fails_either_way(metric, worse, bet
         base = BASE["ci_a"]["t2fuzzy"][metric]
         within = base + (step - base) * tolerance * 0.99  # the step scaled inside the tolerance
         assert _verdicts(_with(**{metric: within}))[("t2fuzzy", metric)] == gate.WITHIN
-        beyond = base + (step - base) * (tolerance * 1.01)
+        # A count of frames has tolerance 0: one frame more or fewer is beyond it.
+        beyond = base + (step - base) * (tolerance * 1.01 if tolerance else 1.0)
         assert _verdicts(_with(**{metric: beyond}))[("t2fuzzy", metric)] == expected
 
 
@@ -163,11 +164,13 @@ def test_the_figures_of_a_run_come_from_its_metrics_and_frames():
             row(3, "ok", (0.0, 0.0, 0.0), ("nan",) * 3, truth_status="no_overlap")]
     errors = {axis: {"mean": 0.1} for axis in ("rotation", "x", "y")}
     metrics = {"status": "complete", "summary": {"run": {"ecc": {"errors": errors,
-                                                                 "n_failed": 1}}}}
+                                                                 "n_failed": 1,
+                                                                 "n_large_errors": 0}}}}
     figures = gate.gate_metrics(metrics, rows)
     assert figures["ecc"] == pytest.approx({
         "rotation_mean_deg": 0.1, "x_mean_px": 0.1, "y_mean_px": 0.1,
-        "rotation_bias_deg": -0.5, "x_bias_px": 0.0, "y_bias_px": -0.5, "failed_frames": 1})
+        "rotation_bias_deg": -0.5, "x_bias_px": 0.0, "y_bias_px": -0.5, "failed_frames": 1,
+        "large_error_frames": 0})
     assert figures[gate.TRUTH] == pytest.approx({
         "angle_mean_deg": -179.0 / 3, "dx_mean_px": 0.0, "dy_mean_px": 4.0 / 3,
         "failed_frames": 1})
@@ -179,14 +182,14 @@ def _must_not_run(out_dir):
 
 @pytest.mark.parametrize("text, message", [
     ("", "not valid JSON"),
-    ('{"format": "egostab-baseline/2", "scenarios": {"ci_a"', "not valid JSON"),
+    ('{"format": "egostab-baseline/3", "scenarios": {"ci_a"', "not valid JSON"),
     ("[]", "not a baseline of format"),
-    ('{"format": "egostab-baseline/2"}', "'scenarios' must be a non-empty object"),
-    ('{"format": "egostab-baseline/2", "scenarios": {}}', "'scenarios' must be a non-empty"),
-    ('{"format": "egostab-baseline/2", "scenarios": {"ci_a": {}}}', "scenarios.ci_a must be"),
-    ('{"format": "egostab-baseline/2", "scenarios": {"ci_a": {"t2fuzzy": {"x_mean_px": 1}}}}',
+    ('{"format": "egostab-baseline/3"}', "'scenarios' must be a non-empty object"),
+    ('{"format": "egostab-baseline/3", "scenarios": {}}', "'scenarios' must be a non-empty"),
+    ('{"format": "egostab-baseline/3", "scenarios": {"ci_a": {}}}', "scenarios.ci_a must be"),
+    ('{"format": "egostab-baseline/3", "scenarios": {"ci_a": {"t2fuzzy": {"x_mean_px": 1}}}}',
      "must hold exactly the figures"),
-    ('{"format": "egostab-baseline/1", "scenarios": {"ci_a": {}}}', "--update-baseline"),
+    ('{"format": "egostab-baseline/2", "scenarios": {"ci_a": {}}}', "--update-baseline"),
 ])
 def test_a_malformed_baseline_is_refused_by_name_before_anything_runs(tmp_path, monkeypatch,
                                                                        text, message):
@@ -229,7 +232,7 @@ def test_a_baseline_whose_tolerances_were_edited_is_refused(tmp_path, monkeypatc
 
 def test_a_number_json_cannot_read_is_named_as_not_valid_json(tmp_path, monkeypatch):
     path = tmp_path / "baseline.json"
-    path.write_text('{"format": "egostab-baseline/2", "scenarios": {"ci_a": ' + "9" * 5000 + "}}")
+    path.write_text('{"format": "egostab-baseline/3", "scenarios": {"ci_a": ' + "9" * 5000 + "}}")
     monkeypatch.setattr(gate, "run_ci_scenarios", _must_not_run)
     with pytest.raises(ValueError, match="not valid JSON"):
         gate.run_gate(path)
