@@ -513,8 +513,9 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
         Dicts with the keys "method", "frames", the mean and the variance of |error| of each
         axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "epe_mean_px",
         "epe_above_floor_px", "failure_rate", "ms_per_frame", "itf_db", "itf_raw_db",
-        "scored_frames" and "large_errors" (``MethodScore.n_large_errors``: None when not
-        counted); a figure metrics.json has none of is NaN.
+        "scored_frames", "large_errors" (``MethodScore.n_large_errors``: None when not
+        counted) and "failures" (status -> failed frames); a figure metrics.json has none of is
+        NaN.
         A run that scored no frame (it fell at once) has no row.
     """
     scores = ((metrics or {}).get("summary") or {}).get("run") or {}
@@ -529,7 +530,8 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
                      "epe_above_floor_px": score.epe_above_floor_px,
                      "failure_rate": score.failure_rate, "ms_per_frame": score.ms_mean,
                      "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db,
-                     "scored_frames": score.n_scored, "large_errors": score.n_large_errors})
+                     "scored_frames": score.n_scored, "large_errors": score.n_large_errors,
+                     "failures": dict(score.failures)})
     return rows
 
 

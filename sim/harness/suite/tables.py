@@ -3,8 +3,9 @@
 Per sequence and method the figures are the run's own (``sim.harness.report.score_rows``): the
 mean absolute error of rotation, x and y over the frames the method estimated, and its failure
 rate; beside the means, the count over all sequences of "ok" estimates off by more than the
-large-error limits (``sim.harness.scoring.LARGE_ERROR_DEG``, ``LARGE_ERROR_PX``). How sequences
-count:
+large-error limits (``sim.harness.scoring.LARGE_ERROR_DEG``, ``LARGE_ERROR_PX``), and the failed
+frames over all sequences by status (the method's own reasons, and ``"unverified"``: the trust
+check could not confirm the estimate). How sequences count:
 
 - a sequence whose run scored no frame (it raised, or the robot fell at once) counts for no
   method; a run that fell later counts with the frames scored before the fall;
@@ -91,7 +92,8 @@ def sequence_rows(outcomes: Sequence[RunOutcome], methods: Sequence[str]) -> lis
             rows.append({**head, "method": method, "frames": score.get("frames", 0),
                          **{figure: float(score.get(figure, math.nan)) for figure in FIGURES},
                          "scored_frames": score.get("scored_frames", 0),
-                         "large_errors": score.get("large_errors", 0)})
+                         "large_errors": score.get("large_errors", 0),
+                         "failures": score.get("failures", {})})
     return rows
 
 
@@ -112,6 +114,22 @@ def large_error_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str
     return totals
 
 
+def failure_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str, dict]:
+    """Per method over all sequences: "frames", "failed" and "by_status" (status -> failed
+    frames, by status name)."""
+    totals = {}
+    for method in methods:
+        mine = [row for row in rows if row["method"] == method]
+        by_status: dict[str, int] = {}
+        for row in mine:
+            for status, count in row["failures"].items():
+                by_status[status] = by_status.get(status, 0) + count
+        totals[method] = {"frames": sum(row["frames"] for row in mine),
+                          "failed": sum(by_status.values()),
+                          "by_status": dict(sorted(by_status.items()))}
+    return totals
+
+
 def suite_figures(rows: Sequence[dict], methods: Sequence[str]) -> dict:
     """Per method the interval of each figure's mean and its large errors; per pair of methods,
     the interval of the difference."""
@@ -129,7 +147,8 @@ def suite_figures(rows: Sequence[dict], methods: Sequence[str]) -> dict:
                                           and interval.excludes_zero())})
     return {"means": {method: {figure: interval.to_dict() for figure, interval in by.items()}
                       for method, by in means.items()},
-            "large_errors": large_error_totals(rows, methods), "differences": differences}
+            "large_errors": large_error_totals(rows, methods),
+            "failures": failure_totals(rows, methods), "differences": differences}
 
 
 def _value(figure: str, value: float) -> str:
@@ -159,6 +178,21 @@ def means_markdown(figures: dict) -> str:
                             large_errors_cell(large[method]["count"],
                                               large[method]["scored_frames"])]
                            for method, by in figures["means"].items()))
+
+
+def failures_markdown(figures: dict) -> str:
+    """Per method: its failed frames over all sequences, and how many of each status, each
+    also as a share of all its frames."""
+    def share(count: int, frames: int) -> str:
+        return f"{format_number(100 * count / frames, 1)}%" if frames else "n/a"
+
+    return markdown_table(
+        ("Method", "Failed frames, all sequences", "By status"),
+        ([method, (f"{totals['failed']:,} of {totals['frames']:,} "
+                   f"({share(totals['failed'], totals['frames'])})"),
+          ", ".join(f"{status} {count:,} ({share(count, totals['frames'])})"
+                    for status, count in totals["by_status"].items()) or "-"]
+         for method, totals in figures["failures"].items()))
 
 
 def differences_markdown(figures: dict) -> str:
@@ -243,7 +277,11 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
         summary, "", *([estimates_line, ""] if estimates else []), intervals, COUNTING, "",
         "## Means over sequences", "",
-        means_markdown(figures), "", "## Paired differences",
+        means_markdown(figures), "", "## Failures by status", "",
+        "Every failed frame of every sequence, pooled; `unverified`: the method answered, and "
+        "the trust check could not confirm its answer (docs/method.md, section 11); any other "
+        "status is the method's own.", "", failures_markdown(figures), "",
+        "## Paired differences",
         "", "Per-sequence differences of two methods on the same sequences, bootstrapped; "
         "lower is better for every figure.", "", differences_markdown(figures), "",
         "## Sequences", "", sequences_markdown(outcomes), ""])

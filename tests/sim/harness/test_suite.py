@@ -312,6 +312,24 @@ def test_ok_estimates_off_by_more_than_the_limits_are_counted_over_all_sequences
         ("t2fuzzy", "4", "4"), ("sift", "4", "0"), ("t2fuzzy", "4", "0"), ("sift", "0", "0")]
 
 
+def test_failed_frames_are_pooled_by_status_over_all_sequences(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6, 7]}])
+    outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 0.1, "sift": None},
+                                            {"t2fuzzy": 0.1, "sift": None},
+                                            {"t2fuzzy": 0.1, "sift": 0.1}])
+    # fake_metrics fails every frame as too_few_matches; one run's check doubted two more.
+    sift = outcomes[2].metrics["summary"]["run"]["sift"]
+    sift["n_failed"], sift["failures"] = 2, {"unverified": 2}
+    result = write_suite_outputs(tmp_path, spec, outcomes)
+    assert result.figures["failures"] == {
+        "t2fuzzy": {"frames": 12, "failed": 0, "by_status": {}},
+        "sift": {"frames": 12, "failed": 10,
+                 "by_status": {"too_few_matches": 8, "unverified": 2}}}
+    assert "| t2fuzzy | 0 of 12 (0.0%) | - |" in result.markdown
+    assert ("| sift | 10 of 12 (83.3%) | too_few_matches 8 (66.7%), unverified 2 (16.7%) |"
+            in result.markdown)
+
+
 def test_runs_from_before_large_errors_were_counted_give_no_total(tmp_path):
     spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
     outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 12.0, "sift": 0.1}] * 2)
