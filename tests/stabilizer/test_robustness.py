@@ -463,6 +463,8 @@ def test_non_arrays_are_rejected(method, value, which):
     check_rejected(method, reference, current, (type(value).__name__,))
 
 
+# np.asmatrix warns that np.matrix is deprecated: making one is the point of this test.
+@pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("subclass", ["matrix", "masked"])
 def test_array_subclasses(method, subclass):
