@@ -158,7 +158,8 @@ def _cmd_score(args: argparse.Namespace) -> int:
                          "own, or scoring from outside the sequence folder")
     # Built before the folder is made: ScoreConfig refuses a run folder in the sequence folder.
     config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
-                         estimates=estimates, record=not args.no_record, workers=args.workers,
+                         estimates=estimates, check_estimates=args.check_estimates,
+                         record=not args.no_record, workers=args.workers,
                          progress=not args.quiet)
     out_dir = check_output_path(out)
     metrics = score(config)
@@ -307,6 +308,10 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="[NAME=]FILE.csv",
                         help="estimates of another program: columns frame, angle_deg, dx, dy "
                              "[, status]; named NAME or the file's stem; repeatable")
+    scorer.add_argument("--check-estimates", action="store_true",
+                        help="pass the estimates files' ok rows through the trust check every "
+                             "method's ok passes (rows it cannot confirm become unverified); "
+                             "default: scored as given")
     scorer.add_argument("--out", type=path_option, default=None,
                         help="run folder (default: results/<sequence folder name>; for a "
                              "suite's runs/<name>/sequence, results/<name>)")

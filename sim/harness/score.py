@@ -51,6 +51,9 @@ class ScoreConfig:
         methods: methods to run; None = the scenario's, unless estimate files are given
             (then only those are scored).
         estimates: method name -> CSV file of estimates made by another program.
+        check_estimates: pass the estimates files' ``"ok"`` rows through the trust check that
+            every method's ``"ok"`` passes (``stabilizer.verification``); a row it cannot
+            confirm becomes ``"unverified"``. Default: scored as given.
         record: write ``recording.rrd`` if the scenario's ``[recording] enabled`` allows it.
         workers: processes that run the methods (1 = this process; None = one per core,
             or 1 when no method runs).
@@ -61,11 +64,15 @@ class ScoreConfig:
     out_dir: str
     methods: tuple[str, ...] | None = None
     estimates: Mapping[str, str] = field(default_factory=dict)
+    check_estimates: bool = False
     record: bool = True
     workers: int | None = 1
     progress: bool = False
 
     def __post_init__(self):
+        if self.check_estimates and not self.estimates:
+            raise ValueError("--check-estimates: no estimates file to check; accepted: with "
+                             "--estimates")
         # The run's files would mix with the sequence's.
         if Path(self.out_dir).resolve().is_relative_to(Path(self.sequence).resolve()):
             raise ValueError(f"--out {self.out_dir}: is in the sequence folder; accepted: a "
@@ -88,8 +95,8 @@ def score(config: ScoreConfig) -> dict:
 
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
-    file_methods = {name: FileEstimation(path, sequence) for name, path in
-                    config.estimates.items()}
+    file_methods = {name: FileEstimation(path, sequence, config.check_estimates)
+                    for name, path in config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
     check_methods(methods)
     workers = worker_count(config.workers, usable_cores() if methods else 1)
@@ -106,6 +113,7 @@ def score(config: ScoreConfig) -> dict:
                                           for name, path in config.estimates.items()},
                             "estimates_sha256": {name: estimation.sha256 for name, estimation
                                                  in file_methods.items()},
+                            "estimates_checked": config.check_estimates,
                             "workers": workers})
     with _method_estimations(sequence, methods, workers,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
@@ -169,11 +177,12 @@ class FileEstimation:
     Columns ``frame, angle_deg, dx, dy`` and optionally ``status`` (empty = "ok"); the motion
     of each frame against its reference_frame in truth.csv, in the README's Motion convention.
     A frame without a row is a failure with status "missing". Values of a row whose status is
-    not "ok" are ignored. The time per frame is unknown (NaN).
+    not "ok" are ignored. With ``checked``, an "ok" row passes the trust check every method's
+    "ok" passes, or becomes "unverified". The time per frame is unknown (NaN).
     """
 
-    def __init__(self, path: str | os.PathLike, sequence):
-        self.path, self.sequence = Path(path), sequence
+    def __init__(self, path: str | os.PathLike, sequence, checked: bool = False):
+        self.path, self.sequence, self.checked = Path(path), sequence, checked
         # One read: the digest is of the very bytes scored, even if the file changes meanwhile.
         self.motions, self.sha256 = read_estimates(self.path, sequence.n_frames)
         self.analysis_ms: list[float] = []
@@ -182,9 +191,13 @@ class FileEstimation:
         from sim.harness.runner import Estimate
         from stabilizer import compensate
         from stabilizer.motion import Motion
+        from stabilizer.verification import VerificationParams, shared_verifier
 
         _check_reference(self.sequence, reference, frame)
         motion = self.motions.get(frame.index) or Motion.failed(MISSING)
+        if self.checked and motion.ok:
+            check = shared_verifier(reference.disparity8, VerificationParams())
+            motion = check(frame.disparity8, motion)
         return Estimate(motion, math.nan, compensate(frame.disparity8, motion))
 
 

@@ -27,6 +27,10 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
                             "frame, angle_deg, dx, dy [, status]); {sequence} in PATH stands "
                             "for each sequence's folder name, e.g. mine=mine/{sequence}.csv; "
                             "scored and compared like a method; repeatable")
+    suite.add_argument("--check-estimates", action="store_true",
+                       help="pass the estimates files' ok rows through the trust check every "
+                            "method's ok passes (rows it cannot confirm become unverified); "
+                            "default: scored as given")
     suite.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     suite.add_argument("--ray-address", default=None,
                        help="with --ray: the Ray cluster address ('auto', 'ray://host:10001'; "
@@ -55,13 +59,17 @@ def run_suite_command(args: argparse.Namespace) -> int:
     from sim.harness.atomic import prepare_output_dir
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.score import estimates_by_name
-    from sim.harness.suite.run import check_estimates, default_suite_dir, run_suite
+    from sim.harness.suite.run import check_estimates_files, default_suite_dir, run_suite
     from sim.harness.suite.spec import load_suite
 
     backend = command_line_backend(args.ray, args.ray_address, args.workers)
     spec = load_suite(args.suite_file)
     estimates = estimates_by_name(args.estimates)
-    check_estimates(spec, estimates)  # before any folder is made
+    check_estimates_files(spec, estimates)  # before any folder is made
+    if args.check_estimates and not estimates:
+        raise ValueError("--check-estimates: no estimates file to check; accepted: with "
+                         "--estimates NAME=PATH")
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
-    return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates),
+    return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates,
+                                                          check_estimates=args.check_estimates),
                                spec, out_dir, backend, args.workers, args.ray_address)

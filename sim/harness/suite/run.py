@@ -38,9 +38,11 @@ SEQUENCE_FIELD = "{sequence}"
 @dataclass(frozen=True)
 class SuiteJob(RunConfig):
     """The RunConfig of one sequence of a suite, and the estimates files of other programs
-    scored beside its methods (name -> this sequence's CSV; docs/sequence-format.md)."""
+    scored beside its methods (name -> this sequence's CSV; docs/sequence-format.md), through
+    the trust check with ``check_estimates`` (``sim.harness.score.ScoreConfig``)."""
 
     estimates: Mapping[str, str] = field(default_factory=dict)
+    check_estimates: bool = False
 
 
 def record_then_score(config: RunConfig) -> dict:
@@ -58,6 +60,7 @@ def record_then_score(config: RunConfig) -> dict:
 
     sequence = Path(config.out_dir) / SEQUENCE_FOLDER
     estimates = dict(config.estimates) if isinstance(config, SuiteJob) else {}
+    checked = isinstance(config, SuiteJob) and config.check_estimates
 
     def record_it() -> None:
         header = record(RecordConfig(config.scenario, str(sequence),
@@ -71,13 +74,15 @@ def record_then_score(config: RunConfig) -> dict:
         record_it()
     try:
         return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
-                                 estimates=estimates, record=config.record))
+                                 estimates=estimates, check_estimates=checked,
+                                 record=config.record))
     except FileValueError as error:
         if recorded_now or not Path(error.source).resolve().is_relative_to(sequence.resolve()):
             raise
         record_it()
         return score(ScoreConfig(str(sequence), config.out_dir, methods=config.methods,
-                                 estimates=estimates, record=config.record))
+                                 estimates=estimates, check_estimates=checked,
+                                 record=config.record))
 
 
 def _recorded_as_planned(sequence: Path, config: RunConfig) -> bool:
@@ -119,12 +124,14 @@ class SuiteRun:
     def made_by_this_plan(self, metrics: dict) -> bool:
         """Whether a finished run's metrics come from this run's configuration: its sequence
         recorded as planned now (:func:`_recorded_as_planned`) and its estimates files read
-        from the paths given now, with the contents they have now. A suite file, command or
-        estimates file changed since is run again."""
+        from the paths given now, with the contents they have now, checked or not as asked now.
+        A suite file, command or estimates file changed since is run again."""
         run = metrics.get("run") or {}
         paths, digests = run.get("estimates") or {}, run.get("estimates_sha256") or {}
+        checked = bool(run.get("estimates_checked", False))
         return (all(paths.get(name) == path and digests.get(name) == _sha256_or_none(path)
                     for name, path in self.config.estimates.items())
+                and (not self.config.estimates or checked == self.config.check_estimates)
                 and _recorded_as_planned(Path(self.config.out_dir) / SEQUENCE_FOLDER,
                                          self.config))
 
@@ -137,16 +144,19 @@ def _sha256_or_none(path: str) -> str | None:
 
 
 def plan_suite(spec: SuiteSpec, out_dir: str | os.PathLike,
-               estimates: Mapping[str, str] | None = None) -> list[SuiteRun]:
+               estimates: Mapping[str, str] | None = None,
+               check_estimates: bool = False) -> list[SuiteRun]:
     """The run of every sequence of ``spec``, in file order; ``estimates``: name -> path of
-    each sequence's estimates file, with :data:`SEQUENCE_FIELD` for the sequence's name."""
+    each sequence's estimates file, with :data:`SEQUENCE_FIELD` for the sequence's name,
+    through the trust check with ``check_estimates``."""
     return [SuiteRun(sequence.name, sequence, SuiteJob(
                 scenario=sequence.scenario,
                 out_dir=str(Path(out_dir) / RUNS_FOLDER / sequence.name),
                 methods=spec.methods, record=spec.record, max_frames=spec.max_frames,
                 overrides=dict(sequence.overrides),
                 estimates={name: _estimates_file(pattern, sequence.name)
-                           for name, pattern in (estimates or {}).items()}))
+                           for name, pattern in (estimates or {}).items()},
+                check_estimates=check_estimates))
             for sequence in spec.sequences]
 
 
@@ -154,7 +164,7 @@ def _estimates_file(pattern: str, sequence_name: str) -> str:
     return pattern.replace(SEQUENCE_FIELD, sequence_name)
 
 
-def check_estimates(spec: SuiteSpec, estimates: Mapping[str, str]) -> None:
+def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None:
     """A ValueError naming the first estimates file that cannot be scored: a name that is
     also a method of the suite, a path without :data:`SEQUENCE_FIELD`, a sequence without
     its file (every sequence needs one; its content is checked when it is scored)."""
@@ -184,7 +194,8 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
               workers: int | None = None, ray_address: str | None = None,
               run_fn: Callable[[RunConfig], dict] = record_then_score,
               progress: bool = False,
-              estimates: Mapping[str, str] | None = None) -> SuiteResult:
+              estimates: Mapping[str, str] | None = None,
+              check_estimates: bool = False) -> SuiteResult:
     """Run every sequence of ``spec`` not yet done, then write suite.md, suite.csv, suite.json.
 
     Args:
@@ -192,7 +203,9 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
         out_dir: the suite's folder (runs in ``runs/<sequence>/``, tables beside them).
         estimates: name -> path of each sequence's estimates file made by another program,
             :data:`SEQUENCE_FIELD` standing for the sequence's folder name; each is scored
-            like a method and compared with the suite's methods (:func:`check_estimates`).
+            like a method and compared with the suite's methods (:func:`check_estimates_files`).
+        check_estimates: pass the estimates files' "ok" rows through the trust check every
+            method's "ok" passes (``sim.harness.score.ScoreConfig``).
         backend: ``"local"`` (a process pool, spawn start method) or ``"ray"``.
         workers: runs at a time; default: every core locally, the cluster's free CPUs on Ray.
         ray_address: for Ray, as in :func:`sim.harness.sweep.run_sweep`.
@@ -206,8 +219,9 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
     """
     out_dir = Path(out_dir)
     estimates = dict(estimates or {})
-    check_estimates(spec, estimates)
-    return execute_plan(plan_suite(spec, out_dir, estimates),
-                        lambda outcomes: write_suite_outputs(out_dir, spec, outcomes, estimates),
+    check_estimates_files(spec, estimates)
+    return execute_plan(plan_suite(spec, out_dir, estimates, check_estimates),
+                        lambda outcomes: write_suite_outputs(out_dir, spec, outcomes, estimates,
+                                                             check_estimates),
                         backend=backend, workers=workers, ray_address=ray_address,
                         run_fn=run_fn, progress=progress, label="suite runs")

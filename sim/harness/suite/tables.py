@@ -252,9 +252,11 @@ def _finite_or_none(value):
 
 def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
                         outcomes: Sequence[RunOutcome],
-                        estimates: Mapping[str, str] | None = None) -> SuiteResult:
+                        estimates: Mapping[str, str] | None = None,
+                        check_estimates: bool = False) -> SuiteResult:
     """Write suite.md, suite.csv and suite.json (atomically) from the finished runs; the
-    estimates files (name -> path of each sequence's file) count as methods after the suite's."""
+    estimates files (name -> path of each sequence's file; through the trust check with
+    ``check_estimates``) count as methods after the suite's."""
     out_dir = Path(out_dir)
     estimates = dict(estimates or {})
     names = (*spec.methods, *estimates)
@@ -272,7 +274,10 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
                  f"percentile interval where BCa is degenerate; {N_RESAMPLES} resamples, seed "
                  f"{BOOTSTRAP_SEED}.")
     estimates_line = ("Estimates files of other programs, scored beside the methods: "
-                      + "; ".join(f"{name} ({path})" for name, path in estimates.items()) + ".")
+                      + "; ".join(f"{name} ({path})" for name, path in estimates.items())
+                      + (": their ok rows passed the trust check every method's ok passes, or "
+                         "became unverified." if check_estimates else
+                         ": scored as given, without the trust check the methods' ok passes."))
     markdown = "\n".join([
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
         summary, "", *([estimates_line, ""] if estimates else []), intervals, COUNTING, "",
@@ -287,7 +292,8 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
         "## Sequences", "", sequences_markdown(outcomes), ""])
     document = {
         "name": spec.name, "description": spec.description, "source": spec.source,
-        "methods": list(spec.methods), "estimates": estimates, "summary": summary,
+        "methods": list(spec.methods), "estimates": estimates,
+        "estimates_checked": check_estimates, "summary": summary,
         "counting": COUNTING,
         "bootstrap": {"confidence_level": CONFIDENCE_LEVEL, "n_resamples": N_RESAMPLES,
                       "seed": BOOTSTRAP_SEED, "unit": "sequence"},

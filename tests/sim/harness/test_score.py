@@ -153,6 +153,49 @@ def test_estimates_of_another_program_score_their_offsets_as_errors(folders, tmp
     assert metrics["summary"]["run"]["offset"]["n_failed"] == 2
 
 
+def test_checked_estimates_pass_the_trust_check_every_methods_ok_passes(folders, tmp_path):
+    # The truth, except two rows far off that still say ok: 30 px along x, 25 degrees.
+    with open(folders / "sequence" / "truth.csv", newline="") as handle:
+        truth = {int(row["frame"]): row for row in csv.DictReader(handle)}
+    far_off = {9: (0.0, 30.0, 0.0), 14: (25.0, 0.0, 0.0)}
+    lines = ["frame,angle_deg,dx,dy"]
+    for frame, row in truth.items():
+        offset = far_off.get(frame, (0.0, 0.0, 0.0))
+        lines.append(",".join([str(frame), *(repr(float(row[key]) + delta) for key, delta
+                                             in zip(("angle_deg", "dx", "dy"), offset))]))
+    path = tmp_path / "mine.csv"
+    path.write_text("\n".join(lines) + "\n")
+    for name, check in (("given", False), ("checked", True)):
+        score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / name),
+                          estimates={"mine": str(path)}, check_estimates=check, record=False))
+    given, checked = ({int(row["frame_index"]): row for row in _rows(tmp_path / name)}
+                      for name in ("given", "checked"))
+    assert {given[frame]["status"] for frame in far_off} == {"ok"}
+    assert {checked[frame]["status"] for frame in far_off} == {"unverified"}
+    # The check judges each row as it judges a method's: the true motion passes on most frames.
+    assert sum(row["status"] == "ok" for row in checked.values()) >= N_FRAMES // 2
+    for frame, row in checked.items():
+        assert row["status"] in ("ok", "unverified")
+        if row["status"] == "ok":
+            assert row["est_dx_px"] == given[frame]["est_dx_px"]
+    metrics = json.loads((tmp_path / "checked" / "metrics.json").read_text())
+    assert metrics["run"]["estimates_checked"] is True
+    failures = [json.loads(line) for line in
+                (tmp_path / "checked" / "failures.jsonl").read_text().splitlines()]
+    assert {entry["frame_index"] for entry in failures} >= set(far_off)
+    assert all("verify_failed" in entry["diagnostics"] for entry in failures)
+
+
+def test_check_estimates_without_estimates_is_refused(folders, tmp_path, capsys):
+    from sim.harness.cli import main
+
+    code = main(["score", str(folders / "sequence"), "--methods", "ecc", "--check-estimates",
+                 "--out", str(tmp_path / "out"), "--quiet"])
+    assert code == 2 and not (tmp_path / "out").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--check-estimates: no estimates file to check" in err[0]
+
+
 def test_frames_without_an_estimate_enter_the_itf_uncompensated(folders, tmp_path):
     # As the stabilized output shows them: a stream of failures alone is the raw stream.
     failures = tmp_path / "failures.csv"

@@ -420,6 +420,15 @@ def test_an_estimates_argument_with_a_blank_name_or_path_is_refused(argument, ca
     assert f"--estimates: {argument!r}: accepted: NAME=PATH, NAME not blank" in err
 
 
+def test_check_estimates_without_estimates_is_refused_before_any_folder(tmp_path, capsys):
+    from sim.harness.cli import main
+
+    code = main(["suite", str(CI_SUITE), "--check-estimates", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and not (tmp_path / "out").exists()
+    assert "--check-estimates: no estimates file to check; accepted: with --estimates" in err
+
+
 # --- The CI suite, for real ------------------------------------------------------------------
 
 def run_command(argv: list[str]) -> int:
@@ -497,6 +506,13 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     assert "2 finished (1 already done before this call)" in (out / TABLE_MD).read_text()
     rescored = json.loads((out / TABLE_JSON).read_text())["means"]
     assert rescored["mine"][ROTATION]["mean"] == pytest.approx(1.0)
+    # Asked to check the estimates, every sequence is scored again, through the trust check.
+    assert run_command([*with_estimates, "--check-estimates"]) == 0
+    assert "2 finished (0 already done before this call)" in (out / TABLE_MD).read_text()
+    checked = json.loads((out / TABLE_JSON).read_text())
+    assert checked["estimates_checked"] is True
+    assert "their ok rows passed the trust check" in (out / TABLE_MD).read_text()
+    assert set(checked["failures"]["mine"]["by_status"]) <= {"unverified"}
 
 
 def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
