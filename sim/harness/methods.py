@@ -6,7 +6,8 @@ A method name is one of three forms (docs/plugins.md):
   ``stabilizer.Stabilizer(reference, name)``;
 - ``package.module:Name``, an import path to a class built as ``Name(reference, **params)``
   with ``.estimate(current) -> Motion``, or to a function ``(reference, current) -> Motion``
-  or ``-> (angle_deg, dx, dy)``;
+  or ``-> (angle_deg, dx, dy)``; the module is imported from ``sys.path`` (installed, or on
+  ``PYTHONPATH``) or else from the working directory, as ``python -m`` would find it;
 - the name of an entry point of the group ``egostab.stabilizers`` that an installed
   distribution declares; it loads one of the objects above.
 
@@ -21,12 +22,14 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import importlib.machinery
 import importlib.metadata
 import inspect
 import math
 import numbers
 import os
 import re
+import sys
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -48,7 +51,8 @@ IMPORT_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z
 ACCEPTED_FORMS = (f"a built-in method ({', '.join(available_methods())}), an entry point of "
                   f"group {ENTRY_POINT_GROUP} (egostab methods lists them), or an import path "
                   "package.module:Name (a class Name(reference, **params) with "
-                  ".estimate(current), or a function (reference, current))")
+                  ".estimate(current), or a function (reference, current); its module "
+                  "installed, on PYTHONPATH or under the working directory)")
 
 
 class Estimator(Protocol):
@@ -142,7 +146,7 @@ def _load(name: str) -> Any:
         module_name, attribute = name.split(":")
         try:
             with _as_it_was():
-                target = importlib.import_module(module_name)
+                target = _import_module(module_name)
         # A plugin's own import error (a sys.exit() or another BaseException on import too)
         # is the user's to read; Ctrl-C still stops the command.
         except BaseException as error:
@@ -170,6 +174,23 @@ def _load(name: str) -> Any:
         raise MethodError(name, f"entry point {entry_point.value}"
                                 f"{_distribution_text(entry_point)} cannot be loaded "
                                 f"({_one_line(error)})") from None
+
+
+def _import_module(module_name: str) -> Any:
+    """``importlib.import_module``, from the working directory too: an ``egostab`` command,
+    unlike ``python -m``, does not search it, yet that is where a user's module usually is.
+    The directory joins the end of ``sys.path`` (installed modules keep precedence) only when
+    the module's top-level package is found nowhere else but there; worker processes inherit
+    it."""
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as error:
+        top = module_name.split(".")[0]
+        cwd = os.getcwd()
+        if error.name != top or importlib.machinery.PathFinder.find_spec(top, [cwd]) is None:
+            raise
+        sys.path.append(cwd)
+        return importlib.import_module(module_name)
 
 
 def _distribution_text(entry_point: importlib.metadata.EntryPoint) -> str:

@@ -7,6 +7,7 @@ import csv
 import json
 import math
 import os
+import sys
 import warnings
 
 import numpy as np
@@ -49,6 +50,28 @@ def test_a_class_or_a_function_by_import_path_gives_its_estimate(frames, name):
     motion = scored(f"{HELPERS}:{name}", frames)
     assert motion.ok and motion.as_tuple() == FIXED
     assert all(type(value) is float for value in motion.as_tuple())
+
+
+def test_a_module_in_the_working_directory_is_found_after_the_installed_ones(
+        frames, tmp_path, monkeypatch):
+    # An egostab command, unlike python -m, does not search the working directory itself.
+    monkeypatch.setattr(sys, "path", [entry for entry in sys.path
+                                      if entry not in ("", ".", str(tmp_path))])
+    monkeypatch.chdir(tmp_path)
+    package = tmp_path / "egostab_cwd_probe"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "mine.py").write_text(f"def fixed(reference, current):\n    return {FIXED!r}\n")
+    (package / "broken.py").write_text("import egostab_missing_dependency\n")
+    monkeypatch.delitem(sys.modules, "egostab_cwd_probe", raising=False)
+    assert scored("egostab_cwd_probe.mine:fixed", frames).as_tuple() == FIXED
+    assert sys.path[-1] == str(tmp_path)  # after every installed location
+    # A module there whose own import fails names what it lacks, not itself.
+    with pytest.raises(MethodError, match="No module named 'egostab_missing_dependency'"):
+        method_factory("egostab_cwd_probe.broken:fixed")
+    with pytest.raises(MethodError, match=r"cannot import module egostab_nowhere_probe\.mine "
+                                          r"\(ModuleNotFoundError"):
+        method_factory("egostab_nowhere_probe.mine:fixed")
 
 
 def test_a_class_gets_the_reference_and_its_params(frames):
