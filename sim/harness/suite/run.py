@@ -19,8 +19,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sim.harness.runner import RunConfig
-from sim.harness.score import file_sha256
+from sim.harness.runner import RunConfig, frame_count
+from sim.harness.score import file_sha256, read_estimates
 from sim.harness.suite.spec import SuiteSequence, SuiteSpec
 from sim.harness.suite.tables import SuiteResult, write_suite_outputs
 from sim.harness.sweep.execute import execute_plan
@@ -167,7 +167,11 @@ def _estimates_file(pattern: str, sequence_name: str) -> str:
 def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None:
     """A ValueError naming the first estimates file that cannot be scored: a name that is
     also a method of the suite, a path without :data:`SEQUENCE_FIELD`, a sequence without
-    its file (every sequence needs one; its content is checked when it is scored)."""
+    its file (every sequence needs one), or a file whose content is refused
+    (``sim.harness.score.read_estimates``, against the frames the sequence's scenario plans:
+    a duplicate, unknown or non-numeric frame, with its line). Checked before any run, so that
+    one bad file does not fail its sequence's run and with it every method's figures there."""
+
     for name, pattern in estimates.items():
         if name in spec.methods:
             raise ValueError(f"--estimates {name}: {name} is also a method of the suite; "
@@ -183,6 +187,10 @@ def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None
                              f"{_estimates_file(pattern, missing[0])} ({len(missing)} of the "
                              f"suite's {len(spec.sequences)} sequences have none); accepted: one "
                              f"CSV per sequence (docs/suites.md, \"Your own estimates\")")
+    for run in plan_suite(spec, ".", estimates):
+        scenario, _ = planned_scenario(run.config)
+        for path in run.config.estimates.values():
+            read_estimates(Path(path), frame_count(scenario, run.config.max_frames))
 
 
 def default_suite_dir(spec: SuiteSpec, results: str | os.PathLike = "results") -> Path:

@@ -408,6 +408,25 @@ def test_estimates_files_that_cannot_be_scored_are_refused_before_any_work(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("bad_row, message", [
+    ("1,0,0,0\n", "1 appears a second time"), ("3,0,0,0\n", "frame: 3"), ("2,zero,0,0\n", "'zero' is not a number")])
+def test_an_estimates_file_with_a_bad_row_is_refused_before_any_run(tmp_path, monkeypatch,
+                                                                    bad_row, message):
+    # Found only when its sequence was scored, it failed that run, and so every method's
+    # figures on that sequence left the tables.
+    monkeypatch.chdir(tmp_path)
+    spec = small_spec()  # max_frames 3: frames 0, 1 and 2
+    (tmp_path / "mine").mkdir()
+    for sequence in spec.sequences:
+        (tmp_path / "mine" / f"{sequence.name}.csv").write_text(
+            "frame,angle_deg,dx,dy\n1,0,0,0\n" if sequence is not spec.sequences[-1]
+            else "frame,angle_deg,dx,dy\n1,0,0,0\n" + bad_row)
+    with pytest.raises(ValueError, match=message) as refused:
+        run_suite(spec, tmp_path / "out", estimates={"mine": "mine/{sequence}.csv"})
+    assert str(refused.value).startswith(f"mine/{spec.sequences[-1].name}.csv:3: ")
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("argument", [" =mine/{sequence}.csv", "=mine/{sequence}.csv",
                                       "mine= "])
 def test_an_estimates_argument_with_a_blank_name_or_path_is_refused(argument, capsys):
