@@ -22,6 +22,7 @@ from typing import NoReturn
 from scenarios import DEFAULT_SCENARIO
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
+from sim.harness.threads import WORKERS_PER_CORE
 from sim.harness.validation import (MAX_SEED, POSITIVE_INTEGER, integer_option, number_option,
                                     path_option)
 
@@ -286,7 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
                      help="processes running the methods beside the simulation, one thread "
                           "each; 1: the methods run in this process (default: one per method "
-                          "and core when more than one method runs, else 1)")
+                          "and core when more than one method runs, else 1; at most "
+                          f"{WORKERS_PER_CORE} per core)")
     run.set_defaults(handler=_cmd_run)
 
     recorder = commands.add_parser(
@@ -317,7 +319,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "suite's runs/<name>/sequence, results/<name>)")
     scorer.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
                         help="processes running the methods, one thread each; 1: this "
-                             "process (default: one per core)")
+                             "process (default: one per core; at most "
+                             f"{WORKERS_PER_CORE} per core)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     scorer.add_argument("--quiet", action="store_true", help="no progress bar")
     scorer.set_defaults(handler=_cmd_score)
@@ -398,7 +401,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sweep folder (default: results/sweeps/<name>; resumable: complete "
                             "runs are skipped)")
     sweep.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
-                       help="local processes (default: cores)")
+                       help="runs at a time (default: one per core; locally at most "
+                            f"{WORKERS_PER_CORE} per core; with --ray, any)")
     sweep.add_argument("--ray", action="store_true", help="run on a Ray cluster (extra 'cluster')")
     sweep.add_argument("--ray-address", default=None,
                        help="with --ray: the Ray address ('auto' = running cluster; default: "

@@ -255,8 +255,16 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                                  f"status") from None
         missing = [name for name in ESTIMATE_COLUMNS if name not in header]
         if missing:
-            raise FileValueError(f"{path}:1", "header", f"lacks column(s) {', '.join(missing)}",
-                                 f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status")
+            # A spreadsheet of a decimal-comma locale separates by ";" (or a tab): the names are
+            # all there, in one column.
+            separator = next((mark for mark in (";", "\t") if len(header) == 1
+                              and all(name in header[0].lower() for name in ESTIMATE_COLUMNS)
+                              and mark in header[0]), None)
+            problem = (f"separates its columns by {separator!r}" if separator else
+                       f"lacks column(s) {', '.join(missing)}")
+            raise FileValueError(f"{path}:1", "header", problem,
+                                 f"columns {', '.join(ESTIMATE_COLUMNS)} and optionally status, "
+                                 f"separated by commas")
         # Only the columns read: blank or other names a spreadsheet repeats are ignored.
         twice = sorted({name for name in header if name in KNOWN_COLUMNS
                         and header.count(name) > 1})

@@ -73,7 +73,7 @@ def check_local_workers(workers: int | None) -> None:
     cores = usable_cores()
     most = WORKERS_PER_CORE * cores
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= most:
-        raise ValueError(f"workers {workers!r}: accepted: an integer from 1 to {most} "
+        raise ValueError(f"--workers {workers!r}: accepted: an integer from 1 to {most} "
                          f"({WORKERS_PER_CORE} per core of the {cores} this process may run "
                          f"on; more local processes only share the cores and add memory)")
 

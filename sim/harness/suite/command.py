@@ -6,6 +6,7 @@ import argparse
 import functools
 from pathlib import Path
 
+from sim.harness.threads import WORKERS_PER_CORE
 from sim.harness.validation import POSITIVE_INTEGER, path_option
 
 
@@ -20,7 +21,8 @@ def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:
                        help="suite folder (default: results/suites/<name>; resumable: complete "
                             "runs are skipped)")
     suite.add_argument("--workers", type=POSITIVE_INTEGER, default=None,
-                       help="runs at a time (default: every core)")
+                       help="runs at a time (default: one per core; locally at most "
+                            f"{WORKERS_PER_CORE} per core; with --ray, any)")
     suite.add_argument("--estimates", type=_estimates, action="append", default=None,
                        metavar="NAME=PATH",
                        help="estimates of another program, one CSV per sequence (columns "

@@ -193,7 +193,7 @@ def test_more_local_workers_than_a_few_per_core_are_refused_before_any_work(comm
                                                                             capsys):
     out = tmp_path / "out"
     assert main([*command, "--out", str(out), "--workers", "100000"]) == 2
-    assert "workers 100000: accepted: an integer from 1 to" in _one_line_error(capsys,
+    assert "--workers 100000: accepted: an integer from 1 to" in _one_line_error(capsys,
                                                                                  command[0])
     assert not out.exists()
 

@@ -99,7 +99,7 @@ def test_more_workers_than_a_few_per_core_are_refused_before_any_work(folders, t
     assert main(["score", str(folders / "sequence"), "--out", str(out), "--workers",
                  "100000"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("egostab score: error: workers 100000: accepted: an integer from 1 to")
+    assert err.startswith("egostab score: error: --workers 100000: accepted: an integer from 1 to")
     assert "\n" not in err and not out.exists()
 
 
@@ -380,6 +380,20 @@ def test_a_bad_estimates_file_is_refused_by_line(folders, tmp_path, capsys, text
     where = f"{path}:{line}" if line else str(path)
     assert f"{where}: {column}" in err and "\n" not in err and len(err) < 400
     assert not out.exists()  # refused before the run folder is made
+
+
+@pytest.mark.parametrize("separator", [";", "\t"])
+def test_a_file_separated_by_semicolons_or_tabs_is_named_so(folders, tmp_path, capsys,
+                                                            separator):
+    # A decimal-comma spreadsheet's CSV: the columns are all named, in one field.
+    path = tmp_path / "mine.csv"
+    path.write_text(separator.join(("Frame", "angle_deg", "dx", "dy", "status")) + "\n"
+                    + separator.join(("0", "0", "0", "0", "ok")) + "\n")
+    assert main(["score", str(folders / "sequence"), "--estimates", f"mine={path}",
+                 "--out", str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"{path}:1: header: separates its columns by {separator!r}; allowed:" in err
+    assert err.endswith("separated by commas")
 
 
 def test_a_recording_that_ended_with_a_fall_scores_as_the_run_that_fell(tmp_path, monkeypatch):

@@ -409,7 +409,8 @@ def test_estimates_files_that_cannot_be_scored_are_refused_before_any_work(
 
 
 @pytest.mark.parametrize("bad_row, message", [
-    ("1,0,0,0\n", "1 appears a second time"), ("3,0,0,0\n", "frame: 3"), ("2,zero,0,0\n", "'zero' is not a number")])
+    ("1,0,0,0\n", "1 appears a second time"), ("3,0,0,0\n", "frame: 3"),
+    ("2,zero,0,0\n", "'zero' is not a number")])
 def test_an_estimates_file_with_a_bad_row_is_refused_before_any_run(tmp_path, monkeypatch,
                                                                     bad_row, message):
     # Found only when its sequence was scored, it failed that run, and so every method's

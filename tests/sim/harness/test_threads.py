@@ -59,7 +59,7 @@ def test_local_workers_are_at_most_a_few_per_core(monkeypatch):
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
     most = 2 * WORKERS_PER_CORE
     assert worker_count(most, wanted=1) == most
-    with pytest.raises(ValueError, match=rf"workers {most + 1}: accepted: an integer from 1 to "
+    with pytest.raises(ValueError, match=rf"--workers {most + 1}: accepted: an integer from 1 to "
                                          rf"{most} \({WORKERS_PER_CORE} per core of the 2 "):
         worker_count(most + 1, wanted=1)
 
