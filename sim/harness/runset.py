@@ -16,7 +16,7 @@ from typing import Any
 
 from sim.harness.methods import MethodError, method_factory
 from sim.harness.report import safe_name
-from sim.harness.scenario import resolve_scenario_path
+from sim.harness.scenario import list_scenarios, resolve_scenario_path
 from sim.harness.validation import (Fail, FileValueError, is_dotted_key, is_int, is_safe_name,
                                     read_toml)
 
@@ -107,7 +107,11 @@ def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> 
     try:
         found = resolve_scenario_path(str(target))
     except FileNotFoundError as problem:
-        raise fail(key, str(problem)) from None
+        # Its "accepted" part is the file's allowed values, which ``fail`` adds.
+        text = str(problem).split("; accepted: ")[0]
+        if not is_path:
+            text += f" (shipped: {', '.join(path.stem for path in list_scenarios())})"
+        raise fail(key, text) from None
     return str(found.resolve()) if is_path else entry
 
 

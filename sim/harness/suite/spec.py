@@ -181,11 +181,15 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
     try:
         template = load_scenario(scenario, overrides)
     except ScenarioError as error:
-        problem = f"scenario {scenario_name(scenario)} is refused ({error})"
-        if _set_by(error.key, own_overrides) or not _set_by(error.key, overrides):
-            raise fail("overrides" if _set_by(error.key, own_overrides) else "scenario",
-                       problem) from None
-        raise SuiteError(source, "overrides", problem, ALLOWED["overrides"]) from None
+        # A value an override sets is the suite file's, refused as the scenario refuses it.
+        if _set_by(error.key, own_overrides):
+            raise SuiteError(source, f"{where}.overrides: {error.key}", error.problem,
+                             error.allowed) from None
+        if _set_by(error.key, overrides):
+            raise SuiteError(source, f"overrides: {error.key}", error.problem,
+                             error.allowed) from None
+        raise fail("scenario", f"scenario {scenario_name(scenario)} is refused ({error})") \
+            from None
     gaits = distinct_list(entry.get("gaits", [template.gait.preset]), "gaits", fail,
                           lambda v: isinstance(v, str) and bool(v))
     scene_seeds = distinct_list(entry["scene_seeds"], "scene_seeds", fail, is_seed)

@@ -88,8 +88,11 @@ def test_entry_overrides_apply_over_the_suites():
     ({"name": "."}, "name", "not only dots"),
     ({"overrides": {"seed": 3}}, "overrides", "not gait.preset, scene_seed, seed"),
     ({"overrides": {"sensor": {"fps": 20.0}}}, "overrides", "single values"),
-    ({"overrides": {"sensor.fsp": 20.0}}, "overrides", "single values"),
-    (sequence_entry(overrides={"sensor.fsp": 20.0}), "sequences[0].overrides", "single values"),
+    # A value an override sets is refused as the scenario refuses it, named as the override.
+    ({"overrides": {"sensor.fsp": 20.0}}, "overrides: sensor.fsp", "keys preset, fps"),
+    (sequence_entry(overrides={"sensor.fsp": 20.0}), "sequences[0].overrides: sensor.fsp",
+     "keys preset, fps"),
+    ({"overrides": {"duration_s": -1}}, "overrides: duration_s", "0 < duration_s <= 3600"),
     ({"sequences": []}, "sequences", "[[sequences]] tables"),
     ({"sequences": ["corridor_straight"]}, "sequences[0]", "a table with keys scenario"),
     (sequence_entry(gait="default"), "sequences[0].gait", "keys scenario, gaits"),
@@ -107,9 +110,9 @@ def test_entry_overrides_apply_over_the_suites():
     (sequence_entry(overrides={"scene_seed": 1}), "sequences[0].overrides", "not gait.preset"),
     # A refusal within an override's value names the overrides, not the scenario.
     (sequence_entry(overrides={"pushes": [{"t": 1.0, "impulse_ns": [0.0, 20.0, 0.0]}]}),
-     "sequences[0].overrides", "single values"),
-    ({"overrides": {"pushes": [{"t": 1.0, "impulse_ns": [0.0, 20.0, 0.0]}]}}, "overrides",
-     "single values"),
+     "sequences[0].overrides: pushes[0].impulse_ns", "each -10 to 10"),
+    ({"overrides": {"pushes": [{"t": 1.0, "impulse_ns": [0.0, 20.0, 0.0]}]}},
+     "overrides: pushes[0].impulse_ns", "each -10 to 10"),
     ({"sequences": [{"scenario": "corridor_straight", "scene_seeds": [5]},
                     {"scenario": "corridor_straight", "scene_seeds": [6, 5]}]},
      "sequences[1]", "each template, gait, scene seed and seed once"),
@@ -121,6 +124,7 @@ def test_invalid_suites_name_the_file_the_key_and_what_is_allowed(changes, key, 
     assert isinstance(info.value, ValueError) and "\n" not in message
     assert message.startswith(f"tiny.toml: {key}: "), message
     assert allowed in message.split("; allowed: ")[-1], message
+    assert message.count("; allowed: ") == 1 and "; accepted: " not in message, message
 
 
 def test_missing_keys_bad_toml_and_absent_files_are_named(tmp_path):
