@@ -5,10 +5,10 @@ mean signed errors (the bias an offset would show, which a mean absolute error c
 lower), its failed frames and its ``"ok"`` frames off by more than 5 degrees or 10 px (an
 ``"ok"`` that cannot be trusted; none may appear or go unnoticed), and the ground truth's own
 mean motion and failed frames (a change of the simulation or of the truth moves every method's
-errors, some of them down). A
-figure fails the gate when it moves from its baseline by more than its tolerance, either way:
-worse is a regression, better (or a moved truth) a change of results that was not made on
-purpose, for on purpose the baseline is rewritten in the same commit (``--update-baseline``).
+errors, some of them down). A figure fails the gate when it moves from its baseline by more
+than its tolerance, either way: worse is a regression, better (or a moved truth) a change of
+results that was not made on purpose, for on purpose the baseline is rewritten in the same
+commit (``--update-baseline``).
 On one machine the same code gives the same figures bit for bit; the tolerances absorb what
 another machine (CPU, Mesa, a numpy release) may move, and a frame or two whose status it flips.
 """

@@ -171,7 +171,6 @@ def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None
     (``sim.harness.score.read_estimates``, against the frames the sequence's scenario plans:
     a duplicate, unknown or non-numeric frame, with its line). Checked before any run, so that
     one bad file does not fail its sequence's run and with it every method's figures there."""
-
     for name, pattern in estimates.items():
         if name in spec.methods:
             raise ValueError(f"--estimates {name}: {name} is also a method of the suite; "
@@ -187,6 +186,8 @@ def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None
                              f"{_estimates_file(pattern, missing[0])} ({len(missing)} of the "
                              f"suite's {len(spec.sequences)} sequences have none); accepted: one "
                              f"CSV per sequence (docs/suites.md, \"Your own estimates\")")
+    if not estimates:
+        return
     for run in plan_suite(spec, ".", estimates):
         scenario, _ = planned_scenario(run.config)
         for path in run.config.estimates.values():

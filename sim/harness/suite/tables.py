@@ -116,7 +116,7 @@ def large_error_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str
 
 def failure_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str, dict]:
     """Per method over all sequences: "frames", "failed" and "by_status" (status -> failed
-    frames, by status name)."""
+    frames, sorted by status)."""
     totals = {}
     for method in methods:
         mine = [row for row in rows if row["method"] == method]
@@ -275,9 +275,9 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
                  f"{BOOTSTRAP_SEED}.")
     estimates_line = ("Estimates files of other programs, scored beside the methods: "
                       + "; ".join(f"{name} ({path})" for name, path in estimates.items())
-                      + (": their ok rows passed the trust check every method's ok passes, or "
+                      + (". Their ok rows passed the trust check every method's ok passes, or "
                          "became unverified." if check_estimates else
-                         ": scored as given, without the trust check the methods' ok passes."))
+                         ". Scored as given, without the trust check the methods' ok passes."))
     markdown = "\n".join([
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
         summary, "", *([estimates_line, ""] if estimates else []), intervals, COUNTING, "",
