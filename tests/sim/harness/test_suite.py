@@ -535,7 +535,7 @@ def test_ci_suite_runs_end_to_end_and_resumes(tmp_path, capsys):
     assert "2 finished (0 already done before this call)" in (out / TABLE_MD).read_text()
     checked = json.loads((out / TABLE_JSON).read_text())
     assert checked["estimates_checked"] is True
-    assert "their ok rows passed the trust check" in (out / TABLE_MD).read_text()
+    assert "Their ok rows passed the trust check" in (out / TABLE_MD).read_text()
     assert set(checked["failures"]["mine"]["by_status"]) <= {"unverified"}
 
 
