@@ -569,7 +569,8 @@ def _compact_table(runs: list[Path]) -> str:
         if document["status"] != "complete":  # an unfinished run does not pass for a whole one
             label += f" ({document['status']})"
         if document["run"].get("max_frames") is not None:  # nor one cut short on purpose
-            label += f" (--max-frames: {document['run'].get('frames_done')} frames)"
+            label += (f" (--max-frames {document['run']['max_frames']}: "
+                      f"{document['run'].get('frames_done')} frames)")
         if label in cells:
             raise ValueError(f"run folder {folder} given twice; accepted: each run once")
         cells[label] = {}

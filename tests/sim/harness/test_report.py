@@ -224,14 +224,16 @@ def test_the_compact_table_keeps_runs_of_one_name_apart_and_says_which_did_not_f
         run, tmp_path):
     run_dir, _, records, _ = run
     for folder, status, max_frames in (("a", "complete", None), ("b", "interrupted", None),
-                                       ("c", "complete", 10)):
+                                       ("c", "complete", 10), ("d", "interrupted", 200)):
         write_run_outputs(tmp_path / folder / "walk", scenario={}, records=records[:20],
                           summary=summarize(records[:20]), status=status, plots=False,
                           meta={"max_frames": max_frames, "frames_done": 10})
-    first, second, third = (tmp_path / folder / "walk" for folder in "abc")
-    rows = aggregate_runs([first, second, third], compact=True).splitlines()[2:]
+    first, second, third, fourth = (tmp_path / folder / "walk" for folder in "abcd")
+    rows = aggregate_runs([first, second, third, fourth], compact=True).splitlines()[2:]
+    # The limit asked for, and the frames done (a stop leaves fewer).
     assert [row.split(" | ")[0] for row in rows] == [
-        f"| {first}", f"| {second} (interrupted)", f"| {third} (--max-frames: 10 frames)"]
+        f"| {first}", f"| {second} (interrupted)", f"| {third} (--max-frames 10: 10 frames)",
+        f"| {fourth} (interrupted) (--max-frames 200: 10 frames)"]
     for compact in (True, False):
         with pytest.raises(ValueError, match="given twice"):
             aggregate_runs([first, first], compact=compact)
