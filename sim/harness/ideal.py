@@ -377,7 +377,7 @@ def run_ideal(config: IdealConfig) -> dict:
                 status, message = ERROR, f"{type(error).__name__}: {error}"
                 raise
             finally:
-                with stops_held():  # a stop now ends the job after the final write
+                with stops_held(final_write=True):  # a stop now ends the job after it
                     meta.update(message=message, wall_time_s=time.perf_counter() - wall_start)
                     metrics = write(final=True)
         finally:

@@ -45,13 +45,16 @@ _received: list[str] = []
 
 
 def interrupt_reason(interrupt: KeyboardInterrupt) -> str:
-    """One line saying what stopped the job: Ctrl-C, or the signal's name. A library may raise
+    """One line saying what stopped the job: Ctrl-C, or the signal's name, and whether it came
+    during the job's final write, which it let finish (:func:`stops_held`). A library may raise
     the interrupt again with a message of its own (MuJoCo's model compiler does, or drops the
     signal's name): the last stop signal received then names it."""
     name = getattr(interrupt, "signal_name", None)
     if name not in STOP_SIGNAL_NAMES:
         name = _received[-1] if _received else None
-    return _reason(name)
+    after = (" during its final write, which it finished (its files are complete and say how "
+             "it ended)" if getattr(interrupt, "files_complete", False) else "")
+    return _reason(name) + after
 
 
 def _reason(signal_name: str | None) -> str:
@@ -108,11 +111,15 @@ def signal_handlers_kept() -> Iterator[None]:
 
 
 @contextmanager
-def stops_held() -> Iterator[None]:
+def stops_held(final_write: bool = False) -> Iterator[None]:
     """Within the block, Ctrl-C, SIGTERM and SIGHUP are held, and the first one received is
     delivered again once the block ends (to the handler in place then): a run's final write is
     not cut short, so its files say how it ended. A signal the process ignores stays ignored.
-    Main thread only; elsewhere the block runs unchanged."""
+    Main thread only; elsewhere the block runs unchanged.
+
+    With ``final_write`` (the block writes the job's last files), the stop it then raises is
+    marked ``files_complete``: :func:`interrupt_reason` says the files were written whole, as
+    they say how the job ended (a job that had done all its work says "complete")."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -121,7 +128,11 @@ def stops_held() -> Iterator[None]:
         handle((signal.SIGINT, *STOP_SIGNALS), lambda signum, frame: held.append(signum))
         yield
     if held:
-        signal.raise_signal(held[0])
+        try:
+            signal.raise_signal(held[0])  # the handler in place runs before this returns
+        except KeyboardInterrupt as interrupt:
+            interrupt.files_complete = final_write
+            raise
 
 
 @contextmanager

@@ -470,7 +470,7 @@ def score_frames(source, scoring: "Scoring", estimations: Mapping[str, Any],
             scoring.status, scoring.message = ERROR, f"{type(error).__name__}: {error}"
             raise
         finally:
-            with stops_held():  # a stop now ends the job after the final write, not within it
+            with stops_held(final_write=True):  # a stop now ends the job after it, not within
                 bar.close()
                 metrics = scoring.finish(source.sim_time_s, estimations)
     return metrics

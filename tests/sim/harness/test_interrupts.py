@@ -82,6 +82,20 @@ def test_a_stop_within_a_held_block_ends_the_job_after_it():
         assert signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN  # the job's handler again
 
 
+def test_a_stop_held_through_a_final_write_says_the_files_are_complete():
+    # It ended the command as any stop does, yet the files said "complete": the line must not
+    # have the user discard a finished result.
+    with stop_signals_interrupt():
+        for final_write in (True, False):
+            with pytest.raises(Interrupted) as raised:
+                with stops_held(final_write=final_write):
+                    signal.raise_signal(signal.SIGTERM)
+            reason = interrupt_reason(raised.value)
+            assert reason.startswith("interrupted by SIGTERM")
+            assert ("during its final write, which it finished (its files are complete"
+                    in reason) is final_write
+
+
 @pytest.fixture
 def hears_ctrl_c():
     """This process hears Ctrl-C, as from a terminal (a test run in the background ignores it)."""
