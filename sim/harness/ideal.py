@@ -47,6 +47,7 @@ from sim.harness.ground_truth import TRUTH_STATUSES
 from sim.harness.methods import method_factory
 from sim.harness.sequence import decode_image, frame_depth_unit_m
 from stabilizer import apply_motion, available_methods, depth_to_disparity
+from stabilizer.inputs import DEFAULT_FAR_M
 from stabilizer.motion import OK, Motion
 
 #: Name of the default trajectory.
@@ -260,7 +261,9 @@ def read_image(image: str, scene_seed: int = 0,
                                    or np.issubdtype(depth.dtype, np.floating)):
             raise ValueError(f"{image}: need a 2-D array of real depths in metres (integer or "
                              f"float); got {depth.dtype} with shape {depth.shape}")
-        return depth_to_disparity(depth.astype(np.float64)), None
+        depth = depth.astype(np.float64)
+        _refuse_all_too_far(depth, image, "millimetres? accepted: depths in metres")
+        return depth_to_disparity(depth), None
     try:
         data = path.read_bytes()
     except OSError:
@@ -282,7 +285,21 @@ def read_image(image: str, scene_seed: int = 0,
         depth_unit_mm = (DEFAULT_DEPTH_UNIT_MM if sequence_unit_m is None
                          else sequence_unit_m * 1000.0)
     depth_m = np.where(pixels > 0, pixels / (1000.0 / depth_unit_mm), np.nan)
+    _refuse_all_too_far(depth_m, image, f"another unit than {depth_unit_mm:g} mm? accepted: "
+                                        "--depth-unit-mm giving the PNG's unit")
     return depth_to_disparity(depth_m), depth_unit_mm
+
+
+def _refuse_all_too_far(depth_m: np.ndarray, image: str, advice: str) -> None:
+    """A ValueError when every measured pixel (finite, positive) lies beyond the stabilizers'
+    far limit: depths in another unit than the one read, not a scene (a far wall still has a
+    floor in front of it). An image with no measured pixel at all is a degenerate scene, which
+    the run reports frame by frame."""
+    measured = depth_m[np.isfinite(depth_m) & (depth_m > 0)]
+    if measured.size and measured.min() > DEFAULT_FAR_M:
+        raise ValueError(f"{image}: every depth lies beyond {DEFAULT_FAR_M:g} m (from "
+                         f"{measured.min():.4g} to {measured.max():.4g} m as read), where no "
+                         f"stabilizer measures; {advice}")
 
 
 def _within_size_limit(disparity: np.ndarray, image: str, resize: bool) -> np.ndarray:

@@ -403,6 +403,29 @@ def test_an_ideal_complex_depth_array_is_refused_without_a_warning(tmp_path, cap
     assert "\n" not in err
 
 
+def test_depths_all_beyond_the_far_limit_are_refused_as_a_wrong_unit(tmp_path, capfd):
+    # Millimetres in a .npy, or a PNG in 0.1 mm read as 1 mm, ran "complete" with every frame
+    # failed and nothing said.
+    depth = make_depth_scene(3)
+    assert np.nanmax(depth) < 6.5
+    np.save(tmp_path / "mm.npy", depth * 1000.0)
+    cv2.imwrite(str(tmp_path / "tenth_mm.png"), np.round(depth * 10_000).astype(np.uint16))
+    for image, advice in (("mm.npy", "millimetres? accepted: depths in metres"),
+                          ("tenth_mm.png", "another unit than 1 mm? accepted: --depth-unit-mm")):
+        assert main(["ideal", str(tmp_path / image), "--methods", "ecc", "--frames", "2",
+                     "--out", str(tmp_path / "out")]) == 2
+        err = capfd.readouterr().err.strip()
+        assert f"{image}: every depth lies beyond 10 m" in err and advice in err, err
+        assert "\n" not in err and not (tmp_path / "out").exists()
+    # In its own unit, and with no measured pixel at all (a degenerate scene), it runs.
+    assert main(["ideal", str(tmp_path / "tenth_mm.png"), "--depth-unit-mm", "0.1", "--methods",
+                 "ecc", "--frames", "2", "--out", str(tmp_path / "tenth")]) == 0
+    np.save(tmp_path / "nothing.npy", np.full((64, 64), np.nan))
+    assert main(["ideal", str(tmp_path / "nothing.npy"), "--methods", "ecc", "--frames", "2",
+                 "--out", str(tmp_path / "nothing")]) == 0
+    assert json.loads((tmp_path / "nothing" / "metrics.json").read_text())["status"] == "complete"
+
+
 def test_an_ideals_metrics_record_the_image_size_and_resize(tmp_path):
     image = np.kron(depth_to_disparity(make_depth_scene(3)), np.ones((10, 10), np.uint8))
     cv2.imwrite(str(tmp_path / "large.png"), image)  # 1760 x 1440 pixels
