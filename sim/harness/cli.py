@@ -270,7 +270,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
-        prog="egostab", description=__doc__.split("\n\n")[0],
+        prog="egostab", description=__doc__.split("\n\n")[0].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -396,7 +396,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep = commands.add_parser("sweep", help="run a sweep file: scenarios x seeds x noise "
                                               "levels, every method on each run")
-    sweep.add_argument("sweep_file", type=Path)
+    sweep.add_argument("sweep_file", type=Path,
+                       help="a sweep TOML file (see scenarios/sweeps/ and the README's Sweeps)")
     sweep.add_argument("--out", type=path_option, default=None,
                        help="sweep folder (default: results/sweeps/<name>; resumable: complete "
                             "runs are skipped)")

@@ -94,6 +94,16 @@ def check_not_a_sequence(out_dir: str | os.PathLike) -> None:
                          "its own for the run")
 
 
+def check_not_a_run(out_dir: str | os.PathLike) -> None:
+    """Refuse a sequence folder that holds a run's metrics.json: the sequence's files would mix
+    with the run's, as :func:`check_not_a_sequence` refuses the other way round."""
+    from sim.harness.report import METRICS_JSON
+
+    if (Path(out_dir) / METRICS_JSON).is_file():
+        raise ValueError(f"--out {out_dir}: holds a run (its {METRICS_JSON}); accepted: a folder "
+                         "of its own for the sequence")
+
+
 def scenario_name(scenario: str | os.PathLike) -> str:
     """The run's name for a scenario given by name or path (its file stem)."""
     return Path(scenario).stem
@@ -697,7 +707,8 @@ def record(config: RecordConfig) -> dict:
     from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, RecordedFall, SequenceWriter,
                                       TruthRow, check_recording_folder)
 
-    check_recording_folder(config.out_dir)  # before simulating anything
+    check_not_a_run(config.out_dir)  # before simulating anything
+    check_recording_folder(config.out_dir)
     scenario = _configured_scenario(config.scenario, config.seed, config.overrides)
     source = SimulatedFrames(scenario, frame_count(scenario, config.max_frames))
     references = ReferencePolicy(scenario.evaluation.reference)

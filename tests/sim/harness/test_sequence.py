@@ -337,3 +337,18 @@ def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert "holds a recorded sequence" in err and "\n" not in err
     assert sorted(path.name for path in folder.iterdir()) == before
+
+
+def test_a_recording_into_a_run_folder_is_refused(tmp_path, capsys):
+    # It mixed the sequence's files into the run's, which aggregate then read as one.
+    from sim.harness.cli import main
+
+    folder = tmp_path / "run"
+    assert main(["run", CI_CORRIDOR, "--max-frames", "2", "--no-record", "--methods", "ecc",
+                 "--quiet", "--out", str(folder)]) == 0
+    before = sorted(path.name for path in folder.iterdir())
+    assert main(["record", CI_CORRIDOR, "--max-frames", "2", "--quiet", "--out",
+                 str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds a run (its metrics.json)" in err[0]
+    assert sorted(path.name for path in folder.iterdir()) == before
