@@ -252,6 +252,11 @@ def read_image(image: str, scene_seed: int = 0,
     if path.suffix.lower() == ".npy":
         refuse_unit("a .npy depth in metres")
         try:
+            with open(path, "rb") as handle:
+                # Without the magic, numpy takes any file for a pickle and says so.
+                magic = np.lib.format.MAGIC_PREFIX
+                if handle.read(len(magic)) != magic:
+                    raise ValueError("not a .npy file: it lacks the format's magic bytes")
             depth = np.load(path)  # never pickles: an object array is refused
         except (ValueError, OSError, EOFError) as error:
             raise ValueError(f"{image}: cannot read it as a .npy array ({error}); accepted: "

@@ -403,6 +403,15 @@ def test_an_ideal_complex_depth_array_is_refused_without_a_warning(tmp_path, cap
     assert "\n" not in err
 
 
+def test_a_file_named_npy_that_is_not_one_is_named_so(tmp_path, capfd):
+    # numpy took it for a pickle and suggested loading it unsafely.
+    (tmp_path / "depth.npy").write_bytes(b"not numpy")
+    assert main(["ideal", str(tmp_path / "depth.npy"), "--methods", "ecc",
+                 "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert "not a .npy file" in err and "pickle" not in err and "\n" not in err, err
+
+
 def test_depths_all_beyond_the_far_limit_are_refused_as_a_wrong_unit(tmp_path, capfd):
     # Millimetres in a .npy, or a PNG in 0.1 mm read as 1 mm, ran "complete" with every frame
     # failed and nothing said.
