@@ -267,12 +267,23 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
 
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an argument no parser knows is refused by the subcommand's
+        parser, whose --help lists what it accepts (argparse refuses it as the top level's)."""
+        parsed, unknown = self.parse_known_args(args, namespace)
+        if unknown:
+            commands = getattr(self, "commands", None)
+            chosen = commands.choices.get(getattr(parsed, "command", None)) if commands else None
+            (chosen or self).error(f"unrecognized arguments: {' '.join(unknown)}")
+        return parsed
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="egostab", description=__doc__.split("\n\n")[0].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = parser.commands = parser.add_subparsers(dest="command", required=True,
+                                                       metavar="COMMAND")
 
     run = commands.add_parser("run", help="run a walking scenario and score the stabilizers")
     run.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,

@@ -135,6 +135,17 @@ def _one_line_error(capsys, command: str) -> str:
     return err
 
 
+@pytest.mark.parametrize("command", [["run"], ["score", "seq"], ["list"]])
+def test_an_unknown_option_is_refused_by_its_subcommand(command, capsys):
+    # argparse refused it as the top level's, pointing to `egostab --help`.
+    with pytest.raises(SystemExit) as exit_info:
+        main([*command, "--bogus"])
+    command = command[0]
+    err = _one_line_error(capsys, command)
+    assert exit_info.value.code == 2
+    assert err.endswith(f"unrecognized arguments: --bogus (usage: egostab {command} --help)")
+
+
 @pytest.mark.parametrize("scenario", ["no_such_scenario", "/no/such/file.toml"])
 def test_a_missing_scenario_is_one_line_and_status_2(scenario, tmp_path, capsys):
     assert main(["run", scenario, "--out", str(tmp_path / "run")]) == 2
