@@ -14,6 +14,8 @@ environment.
 from __future__ import annotations
 
 import os
+import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -151,3 +153,23 @@ class WorkerPool:
 def _init_single_thread_worker() -> None:
     ignore_ctrl_c()
     limit_threads()
+    exit_with_parent()
+
+
+#: How often a worker looks whether its parent is still there, seconds.
+PARENT_POLL_S = 1.0
+
+
+def exit_with_parent() -> None:
+    """In a worker process: end it once its parent has gone. A parent killed outright
+    (SIGKILL: a batch system's hard limit, the out-of-memory killer) cannot stop its pool, whose
+    workers then waited for work forever, holding the command's output open; a daemon thread
+    sees the parent change (the worker is re-parented) and ends the worker."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()

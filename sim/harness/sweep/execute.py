@@ -31,7 +31,7 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
                                     plan_sweep, split_done)
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
-from sim.harness.threads import (check_local_workers, limit_threads,
+from sim.harness.threads import (check_local_workers, exit_with_parent, limit_threads,
                                  single_thread_environment_vars, worker_count)
 from sim.harness.validation import is_int
 
@@ -223,6 +223,7 @@ def _start_worker(stopping, ctrl_c: bool) -> None:
     ignore_ctrl_c()
     handle(STOP_SIGNALS, _between_runs)
     limit_threads()
+    exit_with_parent()
     _stopping, _ctrl_c = stopping, ctrl_c
 
 

@@ -1,8 +1,10 @@
 """One OpenCV and one BLAS thread where estimates run (sim/harness/threads.py)."""
 
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -78,3 +80,31 @@ def test_a_pool_that_cannot_start_leaves_the_environment_as_it_was(monkeypatch):
     with pytest.raises(ValueError):
         single_thread_pool(0)
     assert not {name for name in THREAD_VARIABLES if name in os.environ}
+
+
+def test_workers_end_when_their_parent_is_killed_outright():
+    # SIGKILL cannot be handled: the pool's workers waited for work forever, holding the
+    # command's output open.
+    code = ("import os, time\n"
+            "from sim.harness.threads import single_thread_pool\n"
+            "pool = single_thread_pool(2)\n"
+            "print(*{pool.submit(os.getpid).result() for _ in range(8)}, flush=True)\n"
+            "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                              stderr=subprocess.DEVNULL)
+    workers = [int(pid) for pid in parent.stdout.readline().split()]
+    assert workers
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_running(pid) for pid in workers):
+        time.sleep(0.2)
+    assert not [pid for pid in workers if _running(pid)]
+
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
