@@ -67,10 +67,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     backend = command_line_backend(args.ray, args.ray_address, args.workers)
     spec = load_suite(args.suite_file)
     estimates = estimates_by_name(args.estimates)
-    check_estimates_files(spec, estimates)  # before any folder is made
-    if args.check_estimates and not estimates:
-        raise ValueError("--check-estimates: no estimates file to check; accepted: with "
-                         "--estimates NAME=PATH")
+    check_estimates_files(spec, estimates, args.check_estimates)  # before any folder
     out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
     return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates,
                                                           check_estimates=args.check_estimates),

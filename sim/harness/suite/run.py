@@ -164,13 +164,18 @@ def _estimates_file(pattern: str, sequence_name: str) -> str:
     return pattern.replace(SEQUENCE_FIELD, sequence_name)
 
 
-def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str]) -> None:
-    """A ValueError naming the first estimates file that cannot be scored: a name that is
+def check_estimates_files(spec: SuiteSpec, estimates: Mapping[str, str],
+                          check_estimates: bool = False) -> None:
+    """A ValueError naming the first estimates file that cannot be scored, or
+    ``check_estimates`` without any file to check: a name that is
     also a method of the suite, a path without :data:`SEQUENCE_FIELD`, a sequence without
     its file (every sequence needs one), or a file whose content is refused
     (``sim.harness.score.read_estimates``, against the frames the sequence's scenario plans:
     a duplicate, unknown or non-numeric frame, with its line). Checked before any run, so that
     one bad file does not fail its sequence's run and with it every method's figures there."""
+    if check_estimates and not estimates:
+        raise ValueError("--check-estimates: no estimates file to check; accepted: with "
+                         "--estimates NAME=PATH")
     for name, pattern in estimates.items():
         if name in spec.methods:
             raise ValueError(f"--estimates {name}: {name} is also a method of the suite; "
@@ -228,7 +233,7 @@ def run_suite(spec: SuiteSpec, out_dir: str | os.PathLike, backend: str = "local
     """
     out_dir = Path(out_dir)
     estimates = dict(estimates or {})
-    check_estimates_files(spec, estimates)
+    check_estimates_files(spec, estimates, check_estimates)
     return execute_plan(plan_suite(spec, out_dir, estimates, check_estimates),
                         lambda outcomes: write_suite_outputs(out_dir, spec, outcomes, estimates,
                                                              check_estimates),
