@@ -14,7 +14,11 @@ DFT, local sums by running-sum tables). The integer peak is refined to sub-pixel
 delta = (c_minus - c_plus) / (2 (c_minus - 2 c_0 + c_plus)).
 
 Template pixels marked invalid (0 = no measurement) can be excluded with a mask, which OpenCV
-supports for this method; image pixels cannot be masked by OpenCV.
+supports for this method; image pixels cannot be masked by OpenCV. OpenCV's masked matching
+always correlates by DFT over the whole image, which costs the same for a +-2 pixel search as for
+a search of every shift: a search of at most :data:`DIRECT_SEARCH_SHIFTS` shifts is computed
+directly from Lewis's sums instead (:func:`masked_ncc_direct`), three times faster on the
+searches of a walking run.
 
 :class:`RotatedTemplate` is the paper's "rotation compensation, then translation": the central
 region of the reference, rotated by a candidate angle about the image centre, matched in the
@@ -117,7 +121,11 @@ def match_template(image: np.ndarray, template: np.ndarray,
     _, spread = cv2.meanStdDev(template, mask=mask_u8)
     if not spread[0, 0] > 0:  # OpenCV scores a flat (or fully masked) template 1 everywhere
         return TemplateMatch(np.nan, np.nan, np.nan, True)
-    scores = cv2.matchTemplate(image, template, cv2.TM_CCOEFF_NORMED, mask=mask)
+    n_shifts = (image.shape[0] - template.shape[0] + 1) * (image.shape[1] - template.shape[1] + 1)
+    if mask_u8 is not None and n_shifts <= DIRECT_SEARCH_SHIFTS:
+        scores = masked_ncc_direct(image, template, mask_u8)
+    else:
+        scores = cv2.matchTemplate(image, template, cv2.TM_CCOEFF_NORMED, mask=mask)
     _, peak, _, (col, row) = cv2.minMaxLoc(scores)
     if not math.isfinite(peak):  # non-finite scores (flat image windows): ignore them
         scores = np.where(np.isfinite(scores), scores, -np.inf)
@@ -140,6 +148,75 @@ def match_template(image: np.ndarray, template: np.ndarray,
     else:
         at_border = True
     return TemplateMatch(x, y, peak, at_border, height)
+
+
+#: Searches of at most this many shifts (9 x 9) are scored by :func:`masked_ncc_direct`, whose cost
+#: grows with the number of shifts, rather than by OpenCV's DFTs, whose cost does not.
+DIRECT_SEARCH_SHIFTS = 81
+
+
+def masked_ncc_direct(image: np.ndarray, template: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Eq. (7) at every shift of ``template`` inside ``image``, over the template's pixels where
+    ``mask`` is non-zero: what ``cv2.matchTemplate(image, template, cv2.TM_CCOEFF_NORMED,
+    mask=mask)`` computes for a binary mask, summed directly.
+
+    With the template made zero-mean on its n valid pixels (t', 0 where masked), Lewis's
+    numerator is sum f t' and the image's sum of squares about its window mean is
+    sum_m f^2 - (sum_m f)^2 / n (sums over the valid pixels under the template): three
+    correlations, each one ``np.correlate`` of a row-major strip of the image with the template
+    laid out at the image's row stride. The image is first made zero-mean on the valid pixels
+    under the central shift, so that these float32 sums do not cancel. A shift whose window is
+    flat (its spread is rounding, below 1e-5 of its sum of squares) scores NaN, OpenCV's 0 / 0
+    (whose DFTs leave some flat windows a rounding residue, around 1e-8, instead).
+
+    Parameters
+    ----------
+    image : (H, W) ndarray of float32 or uint8
+    template : (h, w) ndarray
+        h <= H and w <= W; not flat on its valid pixels.
+    mask : (h, w) ndarray
+        Non-zero where the template is valid.
+
+    Returns
+    -------
+    (H - h + 1, W - w + 1) ndarray of float32
+        The NCC at each shift (row = y, column = x of the template's top-left corner).
+
+    References
+    ----------
+    .. [1] J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995, 120-123.
+    """
+    height, width = template.shape
+    rows, columns = image.shape[0] - height + 1, image.shape[1] - width + 1
+    stride = image.shape[1]
+    valid = (mask != 0).view(np.uint8)
+    n_valid = cv2.countNonZero(valid)
+    template = template.astype(np.float32, copy=False)
+    zero_mean = (template - np.float32(cv2.mean(template, valid)[0])) * valid
+    image = image.astype(np.float32, copy=False)
+    centre = image[rows // 2:rows // 2 + height, columns // 2:columns // 2 + width]
+    image = image - np.float32(cv2.mean(centre, valid)[0])
+    # The template and mask at the image's row stride: shift (y, x) is then the dot product of
+    # a strip starting at y * stride + x with them.
+    length = (height - 1) * stride + width
+    kernels = np.zeros((2, height, stride), np.float32)
+    kernels[0, :, :width] = zero_mean
+    kernels[1, :, :width] = valid
+    kernels = kernels.reshape(2, -1)[:, :length]
+    flat, squares = image.ravel(), np.square(image).ravel()
+    sums = np.empty((3, rows, columns), np.float32)
+    for row in range(rows):
+        strip = slice(row * stride, row * stride + length + columns - 1)
+        sums[0, row] = np.correlate(flat[strip], kernels[0], "valid")
+        sums[1, row] = np.correlate(flat[strip], kernels[1], "valid")
+        sums[2, row] = np.correlate(squares[strip], kernels[1], "valid")
+    products, image_sums, image_squares = sums
+    spread = image_squares - image_sums * image_sums / n_valid
+    flat_window = spread <= 1e-5 * image_squares
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scores = products / np.sqrt(spread * float(np.dot(zero_mean.ravel(), zero_mean.ravel())))
+    scores[flat_window] = np.nan
+    return scores
 
 
 class RotatedTemplate:

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from stabilizer.fncc import (
+    DIRECT_SEARCH_SHIFTS,
     MaskedCorrelation,
     RotatedTemplate,
+    masked_ncc_direct,
     match_template,
     parabolic_vertex,
     surface_peak,
@@ -69,6 +71,57 @@ def test_masked_template_ignores_invalid_pixels():
     mask[:10] = 0.0
     match = match_template(image, template, mask)
     assert (match.x, match.y) == (pytest.approx(60, abs=0.05), pytest.approx(50, abs=0.05))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.uint8])
+@pytest.mark.parametrize("template_shape, search", [((28, 44), 5), ((104, 136), 5), ((40, 60), 9),
+                                                    ((30, 30), 1), ((50, 70), 17)])
+def test_direct_masked_scores_are_opencvs(template_shape, search, dtype):
+    rng = np.random.default_rng(sum(template_shape) + search)
+    # Disparity-like: far from zero mean, with invalid (0) pixels in the image as well.
+    image = (_textured((template_shape[0] + search - 1, template_shape[1] + search - 1)) * 0.3
+             + 150.0)
+    image[rng.random(image.shape) < 0.1] = 0.0
+    image = image.astype(dtype)
+    template = image[search // 2:search // 2 + template_shape[0],
+                     search // 3:search // 3 + template_shape[1]].copy()
+    mask = (rng.random(template_shape) > 0.2).astype(np.float32)
+    ours = masked_ncc_direct(image, template, mask)
+    theirs = cv2.matchTemplate(image, template, cv2.TM_CCOEFF_NORMED, mask=mask.astype(dtype))
+    np.testing.assert_allclose(ours, theirs, atol=2e-5)
+    assert np.argmax(ours) == np.argmax(theirs)
+
+
+def test_direct_masked_scores_are_nan_on_flat_windows():
+    """OpenCV's 0 / 0: a window that is flat at any level is not scored, not scored at random."""
+    template = _textured((4, 4))
+    mask = np.ones(template.shape, np.uint8)
+    mask[0, 0] = 0
+    image = np.full((12, 12), 37.0, np.float32)
+    image[:, 6:] = 0.0
+    scores = masked_ncc_direct(image, template, mask)  # 9 x 9 shifts
+    # Windows in the left or the right part are flat (at 37 and at 0); the central window
+    # (columns 4-7), about whose mean the sums are taken, is not.
+    assert np.isnan(scores[:, :3]).all() and np.isnan(scores[:, 6:]).all()
+    assert np.isfinite(scores[:, 3:6]).all()
+    assert np.isnan(match_template(np.full((40, 60), 37.0, np.float32), _textured((36, 56)),
+                                   np.ones((36, 56), np.uint8)).peak)
+
+
+def test_small_masked_searches_and_large_ones_find_the_same_match():
+    image = _textured(seed=5)
+    shifted = cv2.warpAffine(image, np.float32([[1, 0, 0.3], [0, 1, -0.2]]), image.shape[::-1],
+                             flags=cv2.INTER_LINEAR)
+    template = image[40:100, 40:130].copy()
+    mask = np.ones_like(template)
+    mask[20:30, 10:50] = 0.0
+    window = shifted[38:38 + 60 + 4, 38:38 + 90 + 4]  # 25 shifts: scored directly
+    assert 25 <= DIRECT_SEARCH_SHIFTS
+    small = match_template(window, template, mask)
+    large = match_template(shifted, template, mask)  # every shift: OpenCV's DFTs
+    assert small.x + 38 == pytest.approx(large.x, abs=1e-3)
+    assert small.y + 38 == pytest.approx(large.y, abs=1e-3)
+    assert small.peak == pytest.approx(large.peak, abs=1e-5)
 
 
 def test_flat_template_gives_no_peak():
