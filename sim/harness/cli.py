@@ -362,8 +362,8 @@ def build_parser() -> argparse.ArgumentParser:
                        default=DEFAULT_RESULTS / "ideal" / "custom",
                        help="output folder (default: results/ideal/custom)")
     ideal.add_argument("--resize", action="store_true",
-                       help="scale an image larger than 1280 x 1024 pixels down to fit "
-                            "(refused otherwise)")
+                       help="scale an image larger than 1280 x 1024 pixels, or longer than "
+                            "4096 on a side, down to fit (refused otherwise)")
     ideal.set_defaults(handler=_cmd_ideal)
 
     aggregate = commands.add_parser("aggregate", help="one table from several run folders")

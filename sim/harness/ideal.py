@@ -47,6 +47,7 @@ from sim.harness.ground_truth import TRUTH_STATUSES
 from sim.harness.methods import method_factory
 from sim.harness.sequence import decode_image, frame_depth_unit_m
 from stabilizer import apply_motion, available_methods, depth_to_disparity
+from stabilizer.api import MAX_SIDE
 from stabilizer.inputs import DEFAULT_FAR_M
 from stabilizer.motion import OK, Motion
 
@@ -67,6 +68,9 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 OTHER_IMAGE_SIGNATURES = ((b"\xff\xd8\xff", "a JPEG image"), (b"II*\x00", "a TIFF image"),
                           (b"MM\x00*", "a TIFF image"), (b"BM", "a BMP image"),
                           (b"GIF8", "a GIF image"), (b"\x00\x00\x00\x0cjP  ", "a JPEG 2000 image"))
+#: PNG colour types (the IHDR chunk's byte 25) of the images that are not single-channel.
+PNG_COLOUR_TYPES = {2: "an RGB", 3: "a palette (indexed-colour)", 4: "a grey + alpha",
+                    6: "an RGBA"}
 #: What ``image`` accepts, for the refusals.
 ACCEPTED_IMAGES = ("a single-channel 8-bit (disparity) or 16-bit (depth) PNG, a .npy depth in "
                    "metres, or a scene name")
@@ -84,8 +88,9 @@ class IdealConfig:
         n_frames: frames of the paper cycle (None: 30); refused with a frames.csv trajectory,
             which replays each of its frames.
         scene_seed: seed of the scene when ``image`` is a scene name.
-        resize: scale an image larger than ``MAX_IMAGE_PIXELS`` down to fit (nearest
-            neighbour, so no disparity value is invented); refused otherwise.
+        resize: scale an image larger than ``MAX_IMAGE_PIXELS``, or longer than
+            ``stabilizer.api.MAX_SIDE`` on a side, down to fit (nearest neighbour, so no
+            disparity value is invented); refused otherwise.
         depth_unit_mm: millimetres per unit of a 16-bit depth PNG (None: the unit of its
             sequence folder for a sequence's frame, else ``DEFAULT_DEPTH_UNIT_MM``); refused
             for any other image.
@@ -146,6 +151,12 @@ def trajectory_from_run(frames_csv: str | Path,
                                      f"lacks column(s) {', '.join(missing)}", kind)
             for line, row in enumerate(reader, start=2):
                 where = f"{frames_csv}:{line}"
+                # csv.DictReader keeps extra cells under the key None, fills missing ones None.
+                n_cells = (sum(value is not None for key, value in row.items() if key is not None)
+                           + len(row.get(None, ())))
+                if n_cells != len(reader.fieldnames):
+                    raise FileValueError(where, "row", f"has {n_cells} cells (a line cut short "
+                                         "or run on?)", f"the header's {len(reader.fieldnames)}")
                 status = row["truth_status"]
                 if status not in TRUTH_STATUSES:
                     raise FileValueError(where, "truth_status", f"is {status!r}",
@@ -156,13 +167,15 @@ def trajectory_from_run(frames_csv: str | Path,
                 except (TypeError, ValueError):
                     raise FileValueError(where, "frame_index", f"is {row['frame_index']!r}",
                                          "a whole number") from None
-                try:
-                    values = [float(row[name]) for name in columns[2:]] if status == OK else ()
-                    if not all(map(math.isfinite, values)):
-                        raise ValueError("a truth that is not finite")
-                except (TypeError, ValueError):
-                    raise FileValueError(where, "row", "holds a value that is not a finite "
-                                         "number", kind) from None
+                values = []
+                for name in columns[2:] if status == OK else ():
+                    try:
+                        values.append(float(row[name]))
+                    except ValueError:
+                        values.append(math.nan)
+                    if not math.isfinite(values[-1]):
+                        raise FileValueError(where, name, f"is {row[name]!r}",
+                                             "a finite number where truth_status is 'ok'")
                 key = (index, row.get("method"))
                 if key in rows:
                     raise FileValueError(where, "frame_index", f"{index} repeats line "
@@ -197,7 +210,10 @@ def load_trajectory(trajectory: str, n_frames: int | None = None,
     walking run's frames.csv (:func:`trajectory_from_run`; ``n_frames`` is refused with it)."""
     if trajectory == PAPER_CYCLE:
         return paper_cycle() if n_frames is None else paper_cycle(n_frames)
-    if Path(trajectory).suffix.lower() == ".csv" and Path(trajectory).is_file():
+    if Path(trajectory).suffix.lower() == ".csv":
+        if not Path(trajectory).is_file():
+            raise ValueError(f"trajectory {trajectory}: no such file; accepted: "
+                             f"{PAPER_CYCLE!r} or the path of a walking run's frames.csv")
         if n_frames is not None:
             raise ValueError(f"--frames {n_frames} with the trajectory {trajectory}: a "
                              "frames.csv is replayed frame by frame; accepted: --frames with "
@@ -277,8 +293,10 @@ def read_image(image: str, scene_seed: int = 0,
                   if data.startswith(signature)), None)
     pixels = decode_image(data) if data.startswith(PNG_SIGNATURE) else None
     if pixels is None or pixels.ndim != 2 or pixels.dtype not in (np.uint8, np.uint16):
+        colour = PNG_COLOUR_TYPES.get(data[25]) if len(data) > 25 else None
         got = (other or "an unreadable file (not a PNG)" if not data.startswith(PNG_SIGNATURE)
                else "an unreadable file" if pixels is None
+               else f"{colour} PNG (read as {pixels.dtype} with shape {pixels.shape})" if colour
                else f"{pixels.dtype} with shape {pixels.shape}")
         raise ValueError(f"{image}: need a single-channel 8-bit (disparity) or 16-bit "
                          f"(depth) PNG; got {got}; accepted: {ACCEPTED_IMAGES}")
@@ -309,13 +327,13 @@ def _refuse_all_too_far(depth_m: np.ndarray, image: str, advice: str) -> None:
 
 def _within_size_limit(disparity: np.ndarray, image: str, resize: bool) -> np.ndarray:
     height, width = disparity.shape
-    if height * width <= MAX_IMAGE_PIXELS:
+    if height * width <= MAX_IMAGE_PIXELS and max(height, width) <= MAX_SIDE:
         return disparity
     if not resize:
         raise ValueError(f"{image}: {width} x {height} pixels is larger than the ideal "
-                         f"experiment accepts ({MAX_IMAGE_PIXELS:,} pixels, e.g. 1280 x 1024); "
-                         "pass --resize to scale it down")
-    scale = math.sqrt(MAX_IMAGE_PIXELS / (height * width))
+                         f"experiment accepts ({MAX_IMAGE_PIXELS:,} pixels, e.g. 1280 x 1024, "
+                         f"and at most {MAX_SIDE} on a side); pass --resize to scale it down")
+    scale = min(math.sqrt(MAX_IMAGE_PIXELS / (height * width)), MAX_SIDE / max(height, width))
     size = (max(1, int(width * scale)), max(1, int(height * scale)))
     return cv2.resize(disparity, size, interpolation=cv2.INTER_NEAREST)
 

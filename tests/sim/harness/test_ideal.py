@@ -44,9 +44,12 @@ def test_paper_cycle_has_the_papers_magnitudes():
     assert dy.min() == pytest.approx(2.0, abs=0.05) and dy.max() == pytest.approx(32.0, abs=0.05)
 
 
-def test_unknown_trajectory_is_a_clear_error():
-    with pytest.raises(ValueError, match="paper_cycle"):
+def test_unknown_trajectory_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="unknown trajectory 'zigzag'; accepted: 'paper_cycle'"):
         load_trajectory("zigzag")
+    with pytest.raises(ValueError, match=r"trajectory \S*frames.csv: no such file; accepted: "
+                                         r"'paper_cycle' or the path"):
+        load_trajectory(str(tmp_path / "frames.csv"))
 
 
 def test_run_ideal_replays_a_walking_runs_truth(tmp_path):
@@ -95,10 +98,11 @@ def test_frames_csv_without_truth_is_rejected(tmp_path):
         trajectory_from_run(path)
 
 
-@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
-def test_a_truth_that_is_not_finite_is_refused_by_line(tmp_path, value):
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "", "two"])
+def test_a_truth_that_is_not_finite_is_refused_by_line_and_column(tmp_path, value):
     path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n1,ok,0,{value},0\n")
-    with pytest.raises(FileValueError, match="frames.csv:3: row: .*not a finite number"):
+    with pytest.raises(FileValueError, match=f"frames.csv:3: true_dx_px: is '{value}'; allowed: "
+                                             "a finite number where truth_status is 'ok'"):
         trajectory_from_run(path)
 
 
@@ -289,6 +293,14 @@ def test_an_ideal_truth_status_not_written_by_a_run_is_refused(tmp_path, status)
         trajectory_from_run(path)
 
 
+@pytest.mark.parametrize("last_row, cells", [("2,ok,1", 3), ("2,ok,1,2,3,4", 6)])
+def test_an_ideal_trajectory_line_cut_short_or_run_on_is_refused(tmp_path, last_row, cells):
+    path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n1,ok,1,2,3\n{last_row}")
+    with pytest.raises(FileValueError, match=rf"frames.csv:4: row: has {cells} cells \(a line "
+                                             r"cut short or run on\?\); allowed: the header's 5"):
+        trajectory_from_run(path)
+
+
 def test_an_ideal_trajectory_skips_frames_without_truth_only(tmp_path):
     path = _frames_csv(tmp_path / "frames.csv", "0,ok,0,0,0\n1,no_overlap,nan,nan,nan\n"
                                                 "2,ok,1,2,3\n")
@@ -392,6 +404,20 @@ def test_an_ideal_image_other_than_png_is_refused_in_one_line(tmp_path, capfd, s
     assert "\n" not in err and not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("mode, kind", [("P", "a palette (indexed-colour) PNG"),
+                                        ("RGB", "an RGB PNG"), ("LA", "a grey + alpha PNG"),
+                                        ("RGBA", "an RGBA PNG")])
+def test_an_ideal_colour_png_is_refused_by_its_colour_type(tmp_path, capfd, mode, kind):
+    image = pytest.importorskip("PIL.Image")
+    disparity = depth_to_disparity(make_depth_scene(3))
+    path = tmp_path / "scene.png"
+    image.fromarray(disparity).convert(mode).save(path)
+    assert main(["ideal", str(path), "--methods", "ecc", "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip()
+    assert f"got {kind} (read as uint8 with shape (144, 176" in err, err
+    assert "\n" not in err and not (tmp_path / "out").exists()
+
+
 def test_an_ideal_complex_depth_array_is_refused_without_a_warning(tmp_path, capfd):
     np.save(tmp_path / "complex.npy", make_depth_scene(3).astype(np.complex128))
     with warnings.catch_warnings():
@@ -433,6 +459,17 @@ def test_depths_all_beyond_the_far_limit_are_refused_as_a_wrong_unit(tmp_path, c
     assert main(["ideal", str(tmp_path / "nothing.npy"), "--methods", "ecc", "--frames", "2",
                  "--out", str(tmp_path / "nothing")]) == 0
     assert json.loads((tmp_path / "nothing" / "metrics.json").read_text())["status"] == "complete"
+
+
+def test_an_ideal_image_longer_than_the_methods_take_is_resized_to_fit_them(tmp_path, capsys):
+    np.save(tmp_path / "wide.npy", np.full((200, 5000), 2.0))  # fewer pixels than 1280 x 1024
+    assert main(["ideal", str(tmp_path / "wide.npy"), "--methods", "ecc", "--frames", "2",
+                 "--out", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "wide.npy: 5000 x 200 pixels is larger than" in err and "4096 on a side" in err, err
+    run = run_ideal(IdealConfig(str(tmp_path / "wide.npy"), str(tmp_path / "out"),
+                                methods=("ecc",), n_frames=2, resize=True))["run"]
+    assert run["image_size"] == [4096, 163] and run["image_size_read"] == [5000, 200]
 
 
 def test_an_ideals_metrics_record_the_image_size_and_resize(tmp_path):
