@@ -648,15 +648,23 @@ class RunFolder:
     into a new folder, is written in place. Either way, once the new run has replaced the
     earlier one, the earlier run's own files (those its metrics.json lists) that the new one
     did not write go: its recording, the plots of methods no longer run would pass for the new
-    run's. Other files in the folder stay.
+    run's. Other files in the folder stay. What a run killed outright (SIGKILL) left goes at the
+    start: its staging folder and its half-written temporary files (``atomic_path``'s).
     """
 
     def __init__(self, final_dir: str | os.PathLike):
+        from sim.harness.atomic import remove_stale_temporaries
+
         self.final_dir = Path(final_dir)
         beside = _finished_run(self.final_dir)
         self.out_dir = self.final_dir / STAGING_FOLDER if beside else self.final_dir
         # Read before the new run's first write replaces its metrics.json.
         self._unfinished_files = set() if beside else _listed_files(self.final_dir)
+        # A staging folder is removed when its run settles: one found now is a killed run's,
+        # whose files would otherwise be moved in with the new run's.
+        shutil.rmtree(self.final_dir / STAGING_FOLDER, ignore_errors=True)
+        if self.final_dir.is_dir():
+            remove_stale_temporaries(self.final_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
 
     def settle(self, finished: bool) -> None:

@@ -278,6 +278,25 @@ def test_a_finished_run_over_a_finished_one_leaves_none_of_the_old_runs_files(fo
         "notes.txt", "summary.md"]
 
 
+def test_a_run_after_one_killed_outright_leaves_none_of_its_leftovers(folders, tmp_path):
+    """SIGKILL runs no finally: a killed run leaves atomic_path's temporaries and, over a
+    finished run, its staging folder; the next run into the folder removes them."""
+    from sim.harness.runner import STAGING_FOLDER
+
+    out = tmp_path / "out"
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out), methods=("ecc",),
+                      record=False, workers=1))
+    (out / ".recording.rrd.k1ll3d0.tmp").write_bytes(b"half a recording")
+    (out / STAGING_FOLDER).mkdir()
+    (out / STAGING_FOLDER / "estimates_sift.png").write_bytes(b"a killed rerun's plot")
+    (out / ".notes.txt").write_text("mine")  # the user's own hidden file: not a temporary
+    score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out), methods=("ecc",),
+                      record=False, workers=1))
+    assert sorted(path.name for path in out.iterdir()) == [
+        ".notes.txt", "error_histograms.png", "estimates_ecc.png", "failures.jsonl",
+        "frames.csv", "metrics.json", "summary.md"]
+
+
 def test_a_run_over_an_unfinished_one_leaves_none_of_the_old_runs_files(
         folders, tmp_path, interrupt_ground_truth):
     out = tmp_path / "out"
