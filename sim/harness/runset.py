@@ -98,6 +98,15 @@ def checked_overrides(overrides: Any, key: str, varied: tuple[str, ...], fail: F
     return dict(overrides)
 
 
+def set_by(key: str | None, overrides: Mapping[str, Any]) -> bool:
+    """Whether the scenario key ``key`` a refusal names is one of ``overrides``, lies within
+    one (``pushes[0].impulse_ns`` within ``pushes``, ``sensor.fps`` within ``sensor``) or holds
+    one (``gait.overrides`` holds ``gait.overrides.step_period_s``)."""
+    return key is not None and any(
+        key == name or key.startswith((f"{name}.", f"{name}[")) or name.startswith(f"{key}.")
+        for name in overrides)
+
+
 def resolve_scenario_entry(entry: Any, key: str, base_dir: Path, fail: Fail) -> str:
     """A shipped scenario name stays a name; a path becomes absolute (from the file's folder)."""
     if not isinstance(entry, str) or not entry.strip():

@@ -42,7 +42,7 @@ from sim.harness.methods import ACCEPTED_FORMS
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
 from sim.harness.runset import (check_header, check_methods, checked_overrides,
-                                read_runset_file, resolve_scenario_entry)
+                                read_runset_file, resolve_scenario_entry, set_by)
 from sim.harness.scenario import ScenarioError, load_scenario
 from sim.harness.validation import FileValueError, distinct_list, is_seed
 
@@ -182,10 +182,10 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
         template = load_scenario(scenario, overrides)
     except ScenarioError as error:
         # A value an override sets is the suite file's, refused as the scenario refuses it.
-        if _set_by(error.key, own_overrides):
+        if set_by(error.key, own_overrides):
             raise SuiteError(source, f"{where}.overrides: {error.key}", error.problem,
                              error.allowed) from None
-        if _set_by(error.key, overrides):
+        if set_by(error.key, overrides):
             raise SuiteError(source, f"overrides: {error.key}", error.problem,
                              error.allowed) from None
         raise fail("scenario", f"scenario {scenario_name(scenario)} is refused ({error})") \
@@ -209,10 +209,3 @@ def _entry_sequences(entry: Any, where: str, suite_overrides: dict, base_dir: Pa
                 sequences.append(SuiteSequence(scenario, template.scene, gait, scene_seed, seed,
                                           {**overrides, **varied}))
     return sequences
-
-
-def _set_by(key: str | None, overrides: Mapping[str, Any]) -> bool:
-    """Whether the scenario key ``key`` a refusal names is one of ``overrides`` or lies within
-    one (``pushes[0].impulse_ns`` within ``pushes``, ``sensor.fps`` within ``sensor``)."""
-    return key is not None and any(key == name or key.startswith((f"{name}.", f"{name}["))
-                                   for name in overrides)

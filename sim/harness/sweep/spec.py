@@ -39,7 +39,7 @@ from sim.harness.methods import ACCEPTED_FORMS
 from sim.harness.report import safe_name
 from sim.harness.runner import scenario_name
 from sim.harness.runset import (check_header, check_methods, checked_overrides,
-                                read_runset_file, resolve_scenario_entry)
+                                read_runset_file, resolve_scenario_entry, set_by)
 from sim.harness.scenario import ScenarioError, load_scenario
 from sim.harness.validation import (FileValueError, distinct_list, is_dotted_key,
                                     is_finite_number, is_seed)
@@ -152,9 +152,16 @@ def _check_runs_load(spec: SweepSpec) -> None:
             try:
                 load_scenario(scenario, {**spec.overrides, spec.noise_key: level})
             except ScenarioError as error:
-                key = (f"noise_levels[{index}]" if error.key == spec.noise_key
-                       else "overrides" if error.key in spec.overrides
-                       or (spec.overrides and _loads(scenario, {spec.noise_key: level}))
+                # A value the sweep file sets is its own, refused as the scenario refuses it.
+                if set_by(error.key, {spec.noise_key: level}):
+                    raise SweepError(spec.source, f"noise_levels[{index}]",
+                                     f"{spec.noise_key}: {error.problem}",
+                                     error.allowed) from None
+                if set_by(error.key, spec.overrides):
+                    raise SweepError(spec.source, f"overrides: {error.key}", error.problem,
+                                     error.allowed) from None
+                key = ("overrides" if spec.overrides and _loads(scenario,
+                                                                {spec.noise_key: level})
                        else f"scenarios[{spec.scenarios.index(scenario)}]")
                 values = ", ".join(f"{name} = {value!r}" for name, value in
                                    {**spec.overrides, spec.noise_key: level}.items())

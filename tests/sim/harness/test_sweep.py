@@ -171,9 +171,10 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"noise_levels": ["high"]}, "noise_levels[0]", "finite numbers"),
     ({"noise_levels": [float("nan")]}, "noise_levels[0]", "finite numbers"),
     ({"noise_levels": [1, 1.0]}, "noise_levels[1]", "distinct"),
-    ({"noise_levels": [1.0, 200.0]}, "noise_levels[1]", "every scenario of the sweep accepts"),
+    # A value the sweep sets is refused as the scenario refuses it, under the sweep's key.
+    ({"noise_levels": [1.0, 200.0]}, "noise_levels[1]", "0 to 100 (multiplies the preset's"),
     ({"noise_key": "sensor..noise"}, "noise_key", "dotted scenario key"),
-    ({"noise_key": "sensor.nosie_scale"}, "noise_levels[0]", "every scenario"),
+    ({"noise_key": "sensor.nosie_scale"}, "noise_levels[0]", "keys preset, fps, noise_scale"),
     ({"methods": ["surf"]}, "methods[0]", "t2fuzzy"),
     ({"methods": []}, "methods", "t2fuzzy"),
     ({"max_frames": 0}, "max_frames", "integer >= 1"),
@@ -187,7 +188,9 @@ def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path)
     ({"overrides": {"sensor.noise_scale.x": 1}}, "overrides", "not the noise key"),
     ({"overrides": {"seed.x": 1}}, "overrides", "not seed"),
     ({"overrides": {"sensor": 1}}, "overrides", "not the noise key"),
-    ({"overrides": {"sensor.fsp": 3}}, "overrides", "every scenario"),
+    ({"overrides": {"sensor.fsp": 3}}, "overrides: sensor.fsp", "keys preset, fps, noise_scale"),
+    ({"overrides": {"gait.overrides.step_period_s": -0.5}}, "overrides: gait.overrides",
+     "valid GaitParams values"),
     # Refused by another key of the scenario, but only with the override: the override's fault.
     ({"overrides": {"duration_s": 1.0}, "scenarios": ["push_recovery"]}, "overrides",
      "every scenario"),
