@@ -17,7 +17,7 @@ Template pixels marked invalid (0 = no measurement) can be excluded with a mask,
 supports for this method; image pixels cannot be masked by OpenCV. OpenCV's masked matching
 always correlates by DFT over the whole image, which costs the same for a +-2 pixel search as for
 a search of every shift: a search of at most :data:`DIRECT_SEARCH_SHIFTS` shifts is computed
-directly from Lewis's sums instead (:func:`masked_ncc_direct`), three times faster on the
+directly from Lewis's sums instead (:func:`masked_ncc_direct`), 2.7 times faster on the
 searches of a walking run.
 
 :class:`RotatedTemplate` is the paper's "rotation compensation, then translation": the central
@@ -186,11 +186,18 @@ def masked_ncc_direct(image: np.ndarray, template: np.ndarray, mask: np.ndarray)
     ----------
     .. [1] J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995, 120-123.
     """
+    if image.ndim != 2 or template.ndim != 2 or np.shape(mask) != template.shape:
+        raise ValueError(f"image and template must be 2-D and mask of the template's shape; got "
+                         f"{image.shape}, {template.shape} and {np.shape(mask)}")
     height, width = template.shape
     rows, columns = image.shape[0] - height + 1, image.shape[1] - width + 1
+    if rows < 1 or columns < 1:
+        raise ValueError(f"template {template.shape} must be no larger than image {image.shape}")
     stride = image.shape[1]
     valid = (mask != 0).view(np.uint8)
     n_valid = cv2.countNonZero(valid)
+    if n_valid == 0:
+        raise ValueError("mask must keep at least one template pixel; got none")
     template = template.astype(np.float32, copy=False)
     zero_mean = (template - np.float32(cv2.mean(template, valid)[0])) * valid
     image = image.astype(np.float32, copy=False)

@@ -151,12 +151,14 @@ def trajectory_from_run(frames_csv: str | Path,
                                      f"lacks column(s) {', '.join(missing)}", kind)
             for line, row in enumerate(reader, start=2):
                 where = f"{frames_csv}:{line}"
-                # csv.DictReader keeps extra cells under the key None, fills missing ones None.
+                # csv.DictReader keeps extra cells under the key None, fills missing ones None
+                # (and keeps one cell of a column name the header repeats).
                 n_cells = (sum(value is not None for key, value in row.items() if key is not None)
                            + len(row.get(None, ())))
-                if n_cells != len(reader.fieldnames):
+                if n_cells != len(set(reader.fieldnames)):
                     raise FileValueError(where, "row", f"has {n_cells} cells (a line cut short "
-                                         "or run on?)", f"the header's {len(reader.fieldnames)}")
+                                         "or run on?)", f"one per column of the header, "
+                                         f"{len(set(reader.fieldnames))}")
                 status = row["truth_status"]
                 if status not in TRUTH_STATUSES:
                     raise FileValueError(where, "truth_status", f"is {status!r}",

@@ -108,6 +108,20 @@ def test_direct_masked_scores_are_nan_on_flat_windows():
                                    np.ones((36, 56), np.uint8)).peak)
 
 
+@pytest.mark.parametrize("image_shape, template_shape, mask_shape, words", [
+    ((10, 10), (12, 4), (12, 4), "no larger than image"),
+    ((10, 10), (4, 4), (4, 5), "mask of the template's shape"),
+    ((10, 10, 3), (4, 4), (4, 4), "must be 2-D"),
+])
+def test_direct_masked_scores_refuse_bad_shapes(image_shape, template_shape, mask_shape, words):
+    with pytest.raises(ValueError, match=words):
+        masked_ncc_direct(np.ones(image_shape, np.float32), np.ones(template_shape, np.float32),
+                          np.ones(mask_shape, np.uint8))
+    with pytest.raises(ValueError, match="at least one template pixel"):
+        masked_ncc_direct(np.ones((10, 10), np.float32), np.ones((4, 4), np.float32),
+                          np.zeros((4, 4), np.uint8))
+
+
 def test_small_masked_searches_and_large_ones_find_the_same_match():
     image = _textured(seed=5)
     shifted = cv2.warpAffine(image, np.float32([[1, 0, 0.3], [0, 1, -0.2]]), image.shape[::-1],

@@ -297,7 +297,8 @@ def test_an_ideal_truth_status_not_written_by_a_run_is_refused(tmp_path, status)
 def test_an_ideal_trajectory_line_cut_short_or_run_on_is_refused(tmp_path, last_row, cells):
     path = _frames_csv(tmp_path / "frames.csv", f"0,ok,0,0,0\n1,ok,1,2,3\n{last_row}")
     with pytest.raises(FileValueError, match=rf"frames.csv:4: row: has {cells} cells \(a line "
-                                             r"cut short or run on\?\); allowed: the header's 5"):
+                                             r"cut short or run on\?\); allowed: one per column of the "
+                                             r"header, 5"):
         trajectory_from_run(path)
 
 
