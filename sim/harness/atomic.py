@@ -40,14 +40,13 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         temporary.unlink(missing_ok=True)
 
 
-def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+def remove_stale_temporaries(folder: str | os.PathLike) -> None:
     """Remove the temporary files :func:`atomic_path` left in ``folder`` (not below it) when a
     process writing there was killed outright (SIGKILL, a power cut), which no ``finally``
-    survives; returns them. Call it only while no other process writes into ``folder``."""
-    stale = [path for path in Path(folder).glob(".*.tmp") if path.is_file()]
-    for path in stale:
-        path.unlink(missing_ok=True)
-    return stale
+    survives. Call it only while no other process writes into ``folder``."""
+    for path in Path(folder).glob(".*.tmp"):
+        if path.is_file():
+            path.unlink(missing_ok=True)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
