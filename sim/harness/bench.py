@@ -8,7 +8,8 @@ writes them as Markdown with the machine they came from (results/bench.md). The 
 timings (:func:`ground_truth_ms`, :func:`scoring_ms`, :func:`recording_ms`) are here for
 profiling one stage at a time, and :func:`t2fuzzy_corpus_benchmark` times the paper's method
 against SIFT on a varied synthetic corpus and on the walking frames of every scene
-(``python -m sim.harness.bench t2fuzzy-corpus``).
+(``python -m sim.harness.bench t2fuzzy-corpus``); :func:`t2fuzzy_stage_shares` shows which of its
+stages takes that time (``python -m sim.harness.bench t2fuzzy-stages``).
 
 Stabilizer figures: milliseconds per frame at the SR4000's 176 x 144. For each method and each
 of ``n_scenes`` synthetic depth scenes, ``Stabilizer(reference, method)`` is built once (the
@@ -224,6 +225,80 @@ def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
         print(f"{scene:>16}: t2fuzzy {ms['t2fuzzy']:6.2f} ({ms['t2fuzzy_cpu']:5.2f}) ms   "
               f"({scenario})")
     print(_load())
+    return figures
+
+
+def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[float, float]]]:
+    """Where ``t2fuzzy``'s time goes on the walking frames of every scene; prints a table.
+
+    The frames are those :func:`t2fuzzy_corpus_benchmark` times (``walk_frames`` per scene of
+    :data:`WALK_SCENARIOS`, reference analysed once per gait cycle, the trust check on), run
+    under ``cProfile``. Each stage's figure is the share of the whole estimate's time spent in
+    it (its cumulative time, so a stage that calls another includes it: the rows nest) and how
+    often it ran per frame. ``cProfile`` adds a cost per Python call, so stages of many small
+    calls read somewhat high: a map of where to look, not a timing (:func:`time_method` is).
+
+    Returns:
+        {scene: {stage: (calls per frame, share of the estimate's time)}}, also for "the rest"
+        (the share in none of the disjoint stages); "estimate" is (1.0, ms per frame under
+        the profiler).
+    """
+    import cProfile
+    import pstats
+
+    from stabilizer.api import Stabilizer
+    from stabilizer.t2fuzzy import T2FuzzyEstimator
+    from stabilizer.t2fuzzy_refinements import RotationSearch
+    from stabilizer.verification import Verifier
+
+    # Disjoint: each runs from the estimate or the check, not from another of these.
+    stages = {
+        "stages 1-5 (segmentation, wavelets, ellipses, threshold)": T2FuzzyEstimator.analyse,
+        "stage 6, the rotation and shift search": RotationSearch.__call__,
+        "stage 6, a disagreement resolved": RotationSearch.resolve_disagreement,
+        "the trust check": Verifier.check,
+        "the second look at a doubted estimate": T2FuzzyEstimator.second_look,
+    }
+    # Parts of the stages above (a part may run in several of them).
+    parts = {
+        "climb on the large template": RotationSearch.refine_on_large_template,
+        "climb on the whole overlap, half resolution": RotationSearch._climb_whole_overlap,
+        "climb on the whole overlap, full resolution": RotationSearch.climb_on_overlap,
+        "rival motion search": Verifier._rival_candidate,
+        "ECC at full resolution": Verifier.full_resolution_optimum,
+    }
+
+    def key(function):
+        code = function.__code__
+        return code.co_filename, code.co_firstlineno, code.co_name
+
+    figures: dict[str, dict[str, tuple[float, float]]] = {}
+    print(f"t2fuzzy's stages on walking frames under cProfile (one thread; calls a frame and "
+          f"share of the estimate's time; indented: parts of the stages; {_load()})")
+    for scene, scenario in WALK_SCENARIOS.items():
+        scenes = simulated_scenes(scenario, walk_frames)
+        profile = cProfile.Profile()
+        profile.enable()
+        frame_ms("t2fuzzy", scenes)
+        profile.disable()
+        timings = pstats.Stats(profile).stats
+        n_frames = sum(len(frames) for _, frames in scenes)
+        n_estimates = n_frames + len(scenes)  # frame_ms also estimates each reference
+        _, calls, _, whole_s, _ = timings[key(Stabilizer.estimate)]
+        if calls != n_estimates:
+            raise RuntimeError(f"{scene}: {calls} estimates profiled, {n_estimates} expected")
+        row = figures[scene] = {"estimate": (1.0, 1e3 * whole_s / n_estimates)}
+        print(f"{scene} ({scenario}): {n_frames} frames, {row['estimate'][1]:.2f} ms a frame "
+              f"under the profiler")
+        for stage, function in (*stages.items(), *parts.items()):
+            _, calls, _, stage_s, _ = timings.get(key(function), (0, 0, 0.0, 0.0, None))
+            row[stage] = (calls / n_estimates, stage_s / whole_s)
+            indent = "    " if stage in parts else "  "
+            print(f"{indent}{stage:<{60 - len(indent)}} {calls / n_estimates:5.2f} "
+                  f"{100 * row[stage][1]:5.1f}%")
+        row["the rest"] = (1.0, 1.0 - sum(row[stage][1] for stage in stages))
+        print(f"  {'the rest (calling, wrapping, frame preparation)':<58} {'':5} "
+              f"{100 * row['the rest'][1]:5.1f}%")
     return figures
 
 
@@ -558,6 +633,7 @@ def bench_markdown(figures: dict) -> str:
 
 COMPONENTS = {
     "t2fuzzy-corpus": t2fuzzy_corpus_benchmark,
+    "t2fuzzy-stages": t2fuzzy_stage_shares,
     "rescoring": lambda: rescoring(150),
     "ground-truth": lambda: (ground_truth_ms(stride=2), ground_truth_ms(stride=1)),
     "scoring": scoring_ms,

@@ -49,3 +49,26 @@ def test_a_timed_job_cut_short_stops_the_benchmark_with_its_signal(monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         bench.finished({"status": "interrupted",
                         "run": {"message": "interrupted by the user (Ctrl-C)"}})
+
+
+def test_stage_shares_split_the_estimate_into_its_stages(monkeypatch, capsys):
+    from stabilizer.testing import corpus_frames
+
+    # Synthetic frames for every scene: the shares' bookkeeping, not the walks' rendering.
+    reference, frames = corpus_frames("clutter", 3, 4)[:2]
+    monkeypatch.setattr(bench, "simulated_scenes", lambda scenario, n: [(reference, frames)])
+    figures = bench.t2fuzzy_stage_shares(walk_frames=4)
+    assert set(figures) == set(bench.WALK_SCENARIOS)
+    for scene, row in figures.items():
+        calls, ms = row.pop("estimate")
+        assert calls == 1.0 and 0 < ms < 1e4
+        rest = row.pop("the rest")[1]
+        stages = [share for stage, (_, share) in row.items() if not stage.startswith("climb")
+                  and stage not in ("rival motion search", "ECC at full resolution")]
+        assert len(stages) == 5 and all(0.0 <= share <= 1.0 for share in stages), scene
+        # Every frame is analysed, searched and checked: most of the time is in the stages.
+        assert row["stages 1-5 (segmentation, wavelets, ellipses, threshold)"][0] >= 1.0
+        assert row["the trust check"][0] >= 1.0
+        assert 0.0 <= rest < 0.5 and abs(sum(stages) + rest - 1.0) < 1e-9
+    printed = capsys.readouterr().out
+    assert "load average" in printed and "the trust check" in printed
