@@ -30,7 +30,6 @@ from sim.harness.threads import limit_threads
 
 limit_threads()  # before numpy and OpenCV load: the figures are for one core
 
-import argparse
 import dataclasses
 import functools
 import math
@@ -65,7 +64,8 @@ BASELINE = "t2fuzzy"
 
 
 def _scenes(n_frames: int, n_scenes: int, seed: int) -> list[tuple[np.ndarray, list]]:
-    """``n_scenes`` uint8 disparity references, each with its share of moved copies."""
+    """``n_scenes`` uint8 disparity references, each with its share of ``n_frames`` moved
+    copies (rounded down, at least one)."""
     # The same scene generator as the accuracy tests.
     from stabilizer.testing import make_depth_scene, random_motion
 
@@ -141,7 +141,9 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
     methods = list(stabilizer.available_methods() if methods is None else methods)
     if scenes is None:
         scenes = _scenes(n_frames, n_scenes, seed)
-        label = label or f"{n_frames} frames of {n_scenes} synthetic scenes"
+        per_scene = len(scenes[0][1])
+        label = label or (f"{n_scenes} synthetic scene{'s' if n_scenes > 1 else ''}, "
+                          f"{per_scene} frame{'s' if per_scene > 1 else ''} each")
     n_timed = sum(len(frames) for _, frames in scenes)
     results: dict[str, float] = {}
     for method in methods:
@@ -155,7 +157,8 @@ def stabilizer_benchmark(methods: list[str] | None = None, n_frames: int = 200,
           f"({label or 'given scenes'}), one thread, trust check {'on' if checked else 'off'}:")
     for method, ms in results.items():
         if np.isfinite(ms):
-            print(f"{method:>16}: {ms:8.3f} ms   ({ms / baseline:6.2f} x {BASELINE})")
+            ratio = f"   ({ms / baseline:6.2f} x {BASELINE})" if np.isfinite(baseline) else ""
+            print(f"{method:>16}: {ms:8.3f} ms{ratio}")
     return results
 
 
@@ -647,21 +650,36 @@ COMPONENTS = {
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from sim.harness.cli import OneLineParser, method_list
+    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+
+    parser = OneLineParser(prog="python -m sim.harness.bench",
+                           description=__doc__.splitlines()[0])
     parser.add_argument("component", nargs="?", default="stabilizers",
                         choices=("stabilizers", *COMPONENTS),
-                        help="what to time (default: the stabilizers)")
-    parser.add_argument("--frames", type=int, default=200, help="frames timed per method")
-    parser.add_argument("--seed", type=int, default=0, help="scene and motion seed")
-    parser.add_argument("--scenes", type=int, default=10, help="distinct scenes")
-    parser.add_argument("--methods", default=None,
-                        help="comma-separated methods (default: all available)")
+                        help="what to time (default: the stabilizers; the options below are "
+                             "theirs)")
+    parser.add_argument("--frames", type=POSITIVE_INTEGER, default=None,
+                        help="frames timed per method, split evenly over the scenes (at least "
+                             "one each; default 200)")
+    parser.add_argument("--seed", type=integer_option(0, MAX_SEED), default=None,
+                        help="scene and motion seed (default 0)")
+    parser.add_argument("--scenes", type=POSITIVE_INTEGER, default=None,
+                        help="distinct scenes (default 10)")
+    parser.add_argument("--methods", type=method_list, default=None,
+                        help="comma-separated methods, or all (default: all available)")
     args = parser.parse_args(argv)
+    options = {"--frames": args.frames, "--seed": args.seed, "--scenes": args.scenes,
+               "--methods": args.methods}
     if args.component != "stabilizers":
+        given = [option for option, value in options.items() if value is not None]
+        if given:
+            parser.error(f"{given[0]} with {args.component}: the options time the stabilizers "
+                         f"only; accepted: {args.component} alone")
         COMPONENTS[args.component]()
         return
-    methods = None if args.methods is None else args.methods.split(",")
-    stabilizer_benchmark(methods, args.frames, args.seed, args.scenes)
+    stabilizer_benchmark(args.methods, 200 if args.frames is None else args.frames,
+                         args.seed or 0, args.scenes or 10)
 
 
 if __name__ == "__main__":

@@ -63,7 +63,9 @@ def _methods(text: str) -> tuple[str, ...]:
     return methods
 
 
-def _method_list(text: str) -> tuple[str, ...]:
+def method_list(text: str) -> tuple[str, ...]:
+    """The argparse ``type`` of ``--methods``: comma-separated methods, each resolved now, or
+    ``all`` alone (every available built-in method)."""
     from sim.harness.methods import ALL_BUILT_INS
     from stabilizer import available_methods
 
@@ -289,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", nargs="?", default=DEFAULT_SCENARIO,
                      help=f"scenario name (see `egostab list`) or TOML path "
                           f"(default: {DEFAULT_SCENARIO})")
-    run.add_argument("--methods", type=_method_list, default=None,
+    run.add_argument("--methods", type=method_list, default=None,
                      help="comma-separated methods (built-in, entry point or "
                           "package.module:Name; see `egostab methods`), or 'all' for the "
                           "built-in ones (default: the scenario's)")
@@ -314,7 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
         "score", help="score a sequence folder without simulating: methods and/or estimates "
                       "files; writes the run folder `run` writes")
     scorer.add_argument("sequence", type=Path, help="sequence folder (`egostab record`)")
-    scorer.add_argument("--methods", type=_method_list, default=None,
+    scorer.add_argument("--methods", type=method_list, default=None,
                         help="comma-separated methods, or 'all' (default: the scenario's, or "
                              "none when --estimates is given)")
     scorer.add_argument("--estimates", type=_estimates, action="append", default=None,
@@ -354,7 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="millimetres per unit of a 16-bit depth PNG (default: the unit "
                             "its sequence.json states for a frame of a sequence folder's "
                             "depth/ or exact/, 0.1 or 0.5; else 1)")
-    ideal.add_argument("--methods", type=_method_list, default=None,
+    ideal.add_argument("--methods", type=method_list, default=None,
                        help="comma-separated methods (built-in, entry point or "
                             "package.module:Name; see `egostab methods`), or 'all' (default: "
                             "all the built-in ones)")

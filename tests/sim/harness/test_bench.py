@@ -72,3 +72,30 @@ def test_stage_shares_split_the_estimate_into_its_stages(monkeypatch, capsys):
         assert 0.0 <= rest < 0.5 and abs(sum(stages) + rest - 1.0) < 1e-9
     printed = capsys.readouterr().out
     assert "load average" in printed and "the trust check" in printed
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["--frames", "0"], "--frames: '0': accepted: an integer >= 1"),
+    (["--scenes", "0"], "--scenes: '0': accepted: an integer >= 1"),
+    (["--seed", "-1"], "--seed: '-1': accepted: an integer from 0"),
+    (["--methods", "no_such_method"], "method 'no_such_method': unknown"),
+    (["t2fuzzy-stages", "--frames", "3"], "--frames with t2fuzzy-stages: the options time the "
+                                           "stabilizers only; accepted: t2fuzzy-stages alone"),
+    (["rescoring", "--methods", "icp"], "--methods with rescoring"),
+])
+def test_bad_options_are_refused_in_one_line(argv, named, capsys):
+    # --scenes 0 divided by zero, --methods of an unknown method ended in a traceback, and a
+    # component's run ignored the stabilizers' options.
+    with pytest.raises(SystemExit) as stop:
+        bench.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert stop.value.code == 2 and len(err) == 1 and named in err[0], err
+
+
+def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
+    # 3 frames over 2 scenes time 1 frame of each: the line said "3 frames of 2 scenes".
+    figures = bench.stabilizer_benchmark(["icp"], n_frames=3, n_scenes=2)
+    printed = capsys.readouterr().out
+    assert "median of 2 frames (2 synthetic scenes, 1 frame each)" in printed, printed
+    # Without t2fuzzy timed there is no ratio to it (it printed "nan x t2fuzzy").
+    assert np.isfinite(figures["icp"]) and "nan" not in printed
