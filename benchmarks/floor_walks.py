@@ -13,7 +13,6 @@ result.
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import sys
 from multiprocessing import Pool
@@ -45,10 +44,15 @@ def _walk(args) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=20.0, help="walking time per walk")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
-    parser.add_argument("--workers", type=int, default=2)
+    from sim.harness.cli import OneLineParser
+    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option, number_option
+
+    parser = OneLineParser(prog="floor_walks.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=number_option(0.0, 3600.0), default=20.0,
+                        help="walking time per walk")
+    parser.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+",
+                        default=[0, 1, 2, 3])
+    parser.add_argument("--workers", type=POSITIVE_INTEGER, default=2)
     args = parser.parse_args(argv)
     jobs = list(itertools.product(GAITS, DIRECTIONS_DEG, args.seeds, [args.seconds]))
     with Pool(args.workers) as pool:

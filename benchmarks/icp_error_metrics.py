@@ -86,7 +86,12 @@ def moved_frames() -> None:
               f"{np.median(times[metric]):.2f} ms/frame")
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    from sim.harness.cli import OneLineParser
+
+    # No options: an argument given is refused rather than ignored.
+    OneLineParser(prog="icp_error_metrics.py",
+                  description=__doc__.splitlines()[0]).parse_args(argv)
     cv2.setNumThreads(1)
     identical_frames()
     moved_frames()

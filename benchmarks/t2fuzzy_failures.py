@@ -67,15 +67,21 @@ def heldout_scene_seeds() -> set[int]:
     return {sequence.scene_seed for sequence in load_suite(SUITES_DIR / "heldout.toml").sequences}
 
 
-def record(out: Path, seeds: list[int]) -> None:
-    from sim.harness.runner import RecordConfig, record as record_sequence
-
+def check_tuning_seeds(seeds: list[int]) -> None:
+    """A ValueError naming the first of ``seeds`` that the held-out suite uses."""
     heldout = heldout_scene_seeds()
     for seed in seeds:
         if seed in heldout:
             raise ValueError(f"scene seed {seed} is a seed of the held-out suite "
                              f"({min(heldout)}-{max(heldout)}), for scoring only; use others, "
                              f"e.g. 2001-2003")
+
+
+def record(out: Path, seeds: list[int]) -> None:
+    """The tuning sequences of ``seeds`` (none held out) into ``out``; those there are kept."""
+    from sim.harness.runner import RecordConfig, record as record_sequence
+
+    check_tuning_seeds(seeds)
     for seed in seeds:
         for short, scenario in SCENARIOS.items():
             for gait_short, gait in GAITS.items():
@@ -544,13 +550,16 @@ def figures(root: Path, out: Path) -> None:
 
 def _sequences(folders: list[Path]) -> list[Path]:
     """The sequence folders among ``folders``, sorted; a folder without sequence.json (a
-    recording that did not finish) is named and left out."""
+    recording that did not finish) is named and left out; none left: a ValueError."""
     complete = []
     for folder in sorted(folders):
         if (folder / "sequence.json").is_file():
             complete.append(folder)
         else:
             print(f"{folder}: no sequence.json (a recording that did not finish); left out")
+    if not complete:
+        raise ValueError(f"no sequence among the {len(folders)} folder(s) given; accepted: "
+                         f"folders `record` wrote (each with its sequence.json)")
     return complete
 
 
@@ -559,46 +568,69 @@ def _setting(text: str) -> tuple[str, object]:
     import ast
 
     name, separator, value = text.partition("=")
-    if not separator:
-        raise SystemExit(f"--refinements {text!r}: accepted: NAME=VALUE")
     value = value.strip()
-    return name.strip(), math.inf if value == "inf" else ast.literal_eval(value)
+    try:
+        if not (separator and name.strip()):
+            raise ValueError
+        return name.strip(), math.inf if value == "inf" else ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: NAME=VALUE, VALUE a Python "
+                                         f"literal (True, 0, 1.5) or inf") from None
+
+
+def _check_refinements(settings: dict) -> None:
+    """A ValueError naming a setting that :class:`~stabilizer.t2fuzzy_refinements.Refinements`
+    does not have or refuses."""
+    import dataclasses
+
+    from stabilizer.t2fuzzy_refinements import Refinements
+
+    names = {field.name for field in dataclasses.fields(Refinements)}
+    unknown = sorted(set(settings) - names)
+    if unknown:
+        raise ValueError(f"--refinements {unknown[0]}: no such setting; accepted: "
+                         f"{', '.join(sorted(names))}")
+    Refinements(**settings)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from sim.harness.cli import OneLineParser
+    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+
+    parser = OneLineParser(prog="t2fuzzy_failures.py", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
     recorder = commands.add_parser("record", help="record the tuning sequences")
     recorder.add_argument("--out", type=Path, required=True)
-    recorder.add_argument("--seeds", type=int, nargs="+", default=list(TUNING_SCENE_SEEDS))
+    recorder.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+", default=list(TUNING_SCENE_SEEDS))
     scorer = commands.add_parser("table", help="before / after / ECC per sequence")
     scorer.add_argument("folders", type=Path, nargs="+")
     overall = commands.add_parser("summary", help="one line per method, through the check")
     overall.add_argument("folders", type=Path, nargs="+")
     overall.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
-    overall.add_argument("--stride", type=int, default=2, help="score every n-th frame")
-    overall.add_argument("--refinements", nargs="+", default=[], metavar="NAME=VALUE",
+    overall.add_argument("--stride", type=POSITIVE_INTEGER, default=2, help="score every n-th frame")
+    overall.add_argument("--refinements", type=_setting, nargs="+", default=[],
+                         metavar="NAME=VALUE",
                          help="t2fuzzy Refinements settings, e.g. final_overlap_climb=True")
     timed = commands.add_parser("overlap-climb", help="t2fuzzy's time with the final climb")
     timed.add_argument("folders", type=Path, nargs="+")
-    timed.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    timed.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
     looked = commands.add_parser("second-look", help="t2fuzzy's time with its second look")
     looked.add_argument("folders", type=Path, nargs="+")
-    looked.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    looked.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
     recovering = commands.add_parser("astray-climb",
                                      help="t2fuzzy's time with its recovery of astray climbs")
     recovering.add_argument("folders", type=Path, nargs="+")
-    recovering.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    recovering.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
     checked = commands.add_parser("check-time", help="the trust check's time per setting")
     checked.add_argument("folders", type=Path, nargs="+")
-    checked.add_argument("--stride", type=int, default=4, help="time every n-th frame")
+    checked.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
     checked.add_argument("--param", default="full_resolution_travel_deg")
     checked.add_argument("--values", type=float, nargs="+", default=[5.0, 2.5])
     swept = commands.add_parser("margins", help="a margin of the check, every method")
     swept.add_argument("folders", type=Path, nargs="+")
     swept.add_argument("--methods", nargs="+", default=["t2fuzzy", "t2fuzzy_paper", "sift",
                                                         "icp", "ecc", "fourier_mellin"])
-    swept.add_argument("--stride", type=int, default=2, help="score every n-th frame")
+    swept.add_argument("--stride", type=POSITIVE_INTEGER, default=2, help="score every n-th frame")
     swept.add_argument("--values", type=float, nargs="+",
                        default=[-0.1, -0.05, 0.03, 0.05, 0.08, 0.1])
     swept.add_argument("--param", default="candidate_margin",
@@ -608,37 +640,41 @@ def main(argv: list[str] | None = None) -> int:
     isolated.add_argument("folders", type=Path, nargs="+")
     tiled = commands.add_parser("flow-tiles", help="how far one frame's true motion is from rigid")
     tiled.add_argument("folder", type=Path)
-    tiled.add_argument("frame", type=int)
+    tiled.add_argument("frame", type=integer_option(0))
     tiled.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
     drawer = commands.add_parser("figures", help="the failing frames of docs/method.md")
     drawer.add_argument("root", type=Path, help="the folder `record` wrote")
     drawer.add_argument("--out", type=Path, default=Path("docs/figures"))
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
+    try:
+        if args.command == "record":
+            check_tuning_seeds(args.seeds)
+        if args.command == "summary":
+            _check_refinements(dict(args.refinements))
+        sequences = _sequences(args.folders) if hasattr(args, "folders") else None
+    except ValueError as error:
+        print(f"t2fuzzy_failures.py {args.command}: error: {error}", file=sys.stderr)
+        return 2
     if args.command == "record":
-        try:
-            record(args.out, args.seeds)
-        except ValueError as error:  # a held-out seed
-            print(f"t2fuzzy_failures.py record: error: {error}", file=sys.stderr)
-            return 2
+        record(args.out, args.seeds)
     elif args.command == "table":
-        table(_sequences(args.folders))
+        table(sequences)
     elif args.command == "summary":
-        summary(_sequences(args.folders), args.methods, args.stride,
-                dict(_setting(text) for text in args.refinements))
+        summary(sequences, args.methods, args.stride, dict(args.refinements))
     elif args.command == "overlap-climb":
-        overlap_climb_time(_sequences(args.folders), args.stride)
+        overlap_climb_time(sequences, args.stride)
     elif args.command in REFINEMENT_TIMINGS:
-        refinement_time(_sequences(args.folders), args.stride, args.command)
+        refinement_time(sequences, args.stride, args.command)
     elif args.command == "check-time":
-        check_time(_sequences(args.folders), args.stride, args.param, args.values)
+        check_time(sequences, args.stride, args.param, args.values)
     elif args.command == "margins":
-        margins(_sequences(args.folders), args.methods, args.stride, args.values, args.param)
+        margins(sequences, args.methods, args.stride, args.values, args.param)
     elif args.command == "flow-tiles":
         flow_tiles(args.folder, args.frame, args.methods)
     elif args.command == "stage6":
-        stage6(_sequences(args.folders))
-    else:
+        stage6(sequences)
+    elif args.command == "figures":
         figures(args.root, args.out)
     return 0
 

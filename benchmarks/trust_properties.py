@@ -15,7 +15,6 @@ than 4 degrees or 6 px from it; and, for what the check costs, the known motions
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 
@@ -30,9 +29,13 @@ def main(argv: list[str] | None = None) -> int:
     from stabilizer.motion import wrap_angle_deg
     from stabilizer.testing import make_depth_scene, random_motion
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=int, default=150, help="cases per method and property")
-    parser.add_argument("--seed", type=int, default=77)
+    from sim.harness.cli import OneLineParser
+    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+
+    parser = OneLineParser(prog="trust_properties.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=POSITIVE_INTEGER, default=150,
+                        help="cases per method and property")
+    parser.add_argument("--seed", type=integer_option(0, MAX_SEED), default=77)
     methods = available_methods()
     parser.add_argument("--methods", nargs="+", choices=methods, default=methods,
                         help="methods to check (default: every built-in one; each draws the "

@@ -126,8 +126,8 @@ class Refinements:
             ``"no_rotation_estimate"``; default True.
         max_rotation_deg: with ``rotation_search``, the largest rotation searched: candidates
             beyond it are dropped and the climb does not pass it, as ``max_shift_px`` bounds
-            the shift. Default 20 degrees (the paper's walking robot turns its camera by up to
-            about 12 degrees; the peers' start searches span +-15).
+            the shift; ``math.inf``: no bound. Default 20 degrees (the paper's walking robot
+            turns its camera by up to about 12 degrees; the peers' start searches span +-15).
         fail_unconverged: with ``rotation_search``, a climb that ends without a local maximum
             of the correlation (after ``search_max_steps`` steps, or at ``max_rotation_deg``)
             gives the status ``"rotation_unconverged"`` rather than an estimate: the peak it
@@ -229,8 +229,11 @@ class Refinements:
         check_integer("search_max_steps", self.search_max_steps, 0, MAX_ITERATIONS)
         for name in ("common_disc_passes", "extra_disc_passes"):
             check_integer(name, getattr(self, name), 0, MAX_DISC_PASSES)
-        for name in ("search_step_deg", "max_rotation_deg", "clip_min_spread"):
+        for name in ("search_step_deg", "clip_min_spread"):
             check_number(name, getattr(self, name), 0.0, open_low=True)
+        if self.max_rotation_deg != math.inf:  # math.inf: no bound
+            check_number("max_rotation_deg (or math.inf: no bound)", self.max_rotation_deg, 0.0,
+                         open_low=True)
         for name in ("extra_pass_trigger_deg", "max_shift_disagreement_px", "resolve_margin",
                      "clip_sigmas"):
             check_number(name, getattr(self, name), 0.0)

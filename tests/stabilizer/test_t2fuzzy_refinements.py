@@ -153,6 +153,20 @@ def test_the_search_stays_within_the_rotation_range():
     assert abs(angle) <= 4.0 + 1.5 and not converged
 
 
+def test_an_unbounded_rotation_range_is_accepted_and_searched():
+    """``max_rotation_deg=math.inf``, the refinements before the range existed
+    (benchmarks/t2fuzzy_failures.py, ``before_refinements``; refused as not finite, which
+    broke that script's ``table``): the same search climbs to the 9 degrees a bound of 4 stops
+    short of."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(max_rotation_deg=math.inf))
+    truth = Motion(9.0, 0.0, 0.0)
+    angle, _, converged = search(np.array([9.0]), 9.0, _smoothed(apply_motion(reference, truth)))
+    assert converged and abs(angle - 9.0) < 0.5
+
+
 def test_off_is_the_paper_pipeline():
     off = Refinements.off()
     assert not off.rotation_search and off.common_disc_passes == off.extra_disc_passes == 0
@@ -166,7 +180,8 @@ def test_off_is_the_paper_pipeline():
 @pytest.mark.parametrize("params", [{"search_step_deg": 0.0}, {"search_max_steps": -1},
                                     {"common_disc_passes": -1}, {"extra_disc_passes": -1},
                                     {"wide_search_px": -1}, {"wide_min_overlap": 0.0},
-                                    {"max_rotation_deg": 0.0}, {"resolve_margin": -0.1},
+                                    {"max_rotation_deg": 0.0}, {"max_rotation_deg": -math.inf},
+                                    {"max_rotation_deg": math.nan}, {"resolve_margin": -0.1},
                                     {"edge_tie_margin": -0.1}, {"clip_sigmas": -1.0},
                                     {"clip_min_spread": 0.0}, {"rotation_search": "no"},
                                     {"common_disc_passes": 2.5}, {"search_max_steps": math.inf},

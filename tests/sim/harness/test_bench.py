@@ -1,4 +1,5 @@
-"""The t2fuzzy corpus benchmark of sim.harness.bench (its synthetic part: the walks render)."""
+"""sim.harness.bench (the corpus benchmark's synthetic part: the walks render; the stage shares; its
+options) and the options of the benchmarks/ scripts."""
 
 import numpy as np
 import pytest
@@ -99,3 +100,26 @@ def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
     assert "median of 2 frames (2 synthetic scenes, 1 frame each)" in printed, printed
     # Without t2fuzzy timed there is no ratio to it (it printed "nan x t2fuzzy").
     assert np.isfinite(figures["icp"]) and "nan" not in printed
+
+
+@pytest.mark.parametrize("script, argv, named", [
+    ("trust_properties.py", ["--cases", "0"], "--cases: '0': accepted: an integer >= 1"),
+    ("trust_properties.py", ["--seed", "-3"], "--seed: '-3': accepted: an integer from 0"),
+    ("floor_walks.py", ["--workers", "0"], "--workers: '0': accepted: an integer >= 1"),
+    ("icp_error_metrics.py", ["--cases", "3"], "unrecognized arguments: --cases 3"),
+    ("t2fuzzy_failures.py", ["summary", "x", "--refinements", "no_such=1"],
+     "--refinements no_such: no such setting"),
+    ("t2fuzzy_failures.py", ["margins", "x", "--stride", "0"], "--stride: '0'"),
+])
+def test_the_benchmark_scripts_refuse_bad_options_in_one_line(script, argv, named):
+    # --cases 0 ran nothing and printed zeros, --seed -3 and --workers 0 ended in tracebacks,
+    # icp_error_metrics.py ignored its arguments.
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[3] / "benchmarks" / script
+    done = subprocess.run([sys.executable, str(path), *argv], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert named in done.stderr and done.stdout == ""

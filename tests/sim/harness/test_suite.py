@@ -214,6 +214,26 @@ def test_the_tuning_script_refuses_to_record_a_heldout_scene(tmp_path):
     assert not (tmp_path / "walks").exists()  # refused before the first recording
 
 
+def test_the_tuning_script_tables_a_recorded_sequence_and_refuses_folders_without_one(tmp_path):
+    # Its "before" configuration (no rotation range: math.inf) was refused by Refinements,
+    # which ended `table` in a traceback before its first line.
+    script = str(REPO / "benchmarks" / "t2fuzzy_failures.py")
+    sequence = tmp_path / "cor_de_2001"
+    done = subprocess.run([sys.executable, "-m", "sim.harness.cli", "record", "corridor_straight",
+                           "--max-frames", "50", "--quiet", "--out", str(sequence)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    done = subprocess.run([sys.executable, script, "table", str(sequence)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [line for line in done.stdout.splitlines() if line.startswith("| cor_de_2001 |")]
+    assert len(rows) == 6 and sum("| before |" in row for row in rows) == 2, done.stdout
+    done = subprocess.run([sys.executable, script, "table", str(tmp_path / "nothing")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "no sequence among the 1 folder(s) given" in done.stderr
+
+
 # --- Counting and outputs (fake runs) --------------------------------------------------------
 
 def fake_metrics(run_dir: Path, methods: dict[str, float | None], frames: int = 4) -> dict:
