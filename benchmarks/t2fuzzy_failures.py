@@ -500,6 +500,13 @@ def _surfaces(reference, current, truth):
     return central, whole
 
 
+#: The failing frames docs/method.md, section 12, draws: (sequence under `record`'s folder,
+#: frame, figure file).
+FIGURE_CASES = [("hall_de_2001", 227, "t2f_fail_hall_ridge.png"),
+                ("off_pa_2001", 216, "t2f_fail_office_beyond_range.png"),
+                ("lab_pa_2001", 288, "t2f_fail_lab_wrapped.png")]
+
+
 def figures(root: Path, out: Path) -> None:
     """The figures of docs/method.md, section 12."""
     import matplotlib
@@ -508,10 +515,7 @@ def figures(root: Path, out: Path) -> None:
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)
-    cases = [("hall_de_2001", 227, "t2f_fail_hall_ridge.png"),
-             ("off_pa_2001", 216, "t2f_fail_office_beyond_range.png"),
-             ("lab_pa_2001", 288, "t2f_fail_lab_wrapped.png")]
-    for name, index, file_name in cases:
+    for name, index, file_name in FIGURE_CASES:
         frames, references, truth, _ = _frames(root / name)
         reference, current = frames[references[index]], frames[index]
         before = _estimates(frames[[references[index], index]], np.array([0, 0]), "t2fuzzy",
@@ -601,13 +605,15 @@ def main(argv: list[str] | None = None) -> int:
     commands = parser.add_subparsers(dest="command", required=True)
     recorder = commands.add_parser("record", help="record the tuning sequences")
     recorder.add_argument("--out", type=Path, required=True)
-    recorder.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+", default=list(TUNING_SCENE_SEEDS))
+    recorder.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+",
+                          default=list(TUNING_SCENE_SEEDS))
     scorer = commands.add_parser("table", help="before / after / ECC per sequence")
     scorer.add_argument("folders", type=Path, nargs="+")
     overall = commands.add_parser("summary", help="one line per method, through the check")
     overall.add_argument("folders", type=Path, nargs="+")
     overall.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
-    overall.add_argument("--stride", type=POSITIVE_INTEGER, default=2, help="score every n-th frame")
+    overall.add_argument("--stride", type=POSITIVE_INTEGER, default=2,
+                         help="score every n-th frame")
     overall.add_argument("--refinements", type=_setting, nargs="+", default=[],
                          metavar="NAME=VALUE",
                          help="t2fuzzy Refinements settings, e.g. final_overlap_climb=True")
@@ -620,10 +626,12 @@ def main(argv: list[str] | None = None) -> int:
     recovering = commands.add_parser("astray-climb",
                                      help="t2fuzzy's time with its recovery of astray climbs")
     recovering.add_argument("folders", type=Path, nargs="+")
-    recovering.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
+    recovering.add_argument("--stride", type=POSITIVE_INTEGER, default=4,
+                            help="time every n-th frame")
     checked = commands.add_parser("check-time", help="the trust check's time per setting")
     checked.add_argument("folders", type=Path, nargs="+")
-    checked.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
+    checked.add_argument("--stride", type=POSITIVE_INTEGER, default=4,
+                         help="time every n-th frame")
     checked.add_argument("--param", default="full_resolution_travel_deg")
     checked.add_argument("--values", type=float, nargs="+", default=[5.0, 2.5])
     swept = commands.add_parser("margins", help="a margin of the check, every method")
@@ -653,6 +661,13 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "summary":
             _check_refinements(dict(args.refinements))
         sequences = _sequences(args.folders) if hasattr(args, "folders") else None
+        if args.command == "figures":
+            missing = [name for name, _, _ in FIGURE_CASES
+                       if not (args.root / name / "sequence.json").is_file()]
+            if missing:
+                raise ValueError(f"{args.root / missing[0]}: no sequence; accepted: the folder "
+                                 f"`record` wrote, which holds "
+                                 f"{', '.join(name for name, _, _ in FIGURE_CASES)}")
     except ValueError as error:
         print(f"t2fuzzy_failures.py {args.command}: error: {error}", file=sys.stderr)
         return 2

@@ -110,10 +110,12 @@ def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
     ("t2fuzzy_failures.py", ["summary", "x", "--refinements", "no_such=1"],
      "--refinements no_such: no such setting"),
     ("t2fuzzy_failures.py", ["margins", "x", "--stride", "0"], "--stride: '0'"),
+    ("t2fuzzy_failures.py", ["figures", "no_such_folder"],
+     "no_such_folder/hall_de_2001: no sequence; accepted: the folder `record` wrote"),
 ])
 def test_the_benchmark_scripts_refuse_bad_options_in_one_line(script, argv, named):
-    # --cases 0 ran nothing and printed zeros, --seed -3 and --workers 0 ended in tracebacks,
-    # icp_error_metrics.py ignored its arguments.
+    # --cases 0 ran nothing and printed zeros, --seed -3, --workers 0 and figures without its
+    # sequences ended in tracebacks, icp_error_metrics.py ignored its arguments.
     import subprocess
     import sys
     from pathlib import Path
