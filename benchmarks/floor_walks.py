@@ -44,8 +44,8 @@ def _walk(args) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from sim.harness.cli import OneLineParser
-    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option, number_option
+    from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
+                                  number_option)
 
     parser = OneLineParser(prog="floor_walks.py", description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=number_option(0.0, 3600.0), default=20.0,

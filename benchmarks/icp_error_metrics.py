@@ -87,7 +87,7 @@ def moved_frames() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from sim.harness.cli import OneLineParser
+    from sim.command_line import OneLineParser
 
     # No options: an argument given is refused rather than ignored.
     OneLineParser(prog="icp_error_metrics.py",

@@ -598,8 +598,7 @@ def _check_refinements(settings: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from sim.harness.cli import OneLineParser
-    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+    from sim.command_line import MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option
 
     parser = OneLineParser(prog="t2fuzzy_failures.py", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)

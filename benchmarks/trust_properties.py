@@ -29,8 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     from stabilizer.motion import wrap_angle_deg
     from stabilizer.testing import make_depth_scene, random_motion
 
-    from sim.harness.cli import OneLineParser
-    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+    from sim.command_line import MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option
 
     parser = OneLineParser(prog="trust_properties.py", description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=POSITIVE_INTEGER, default=150,

@@ -650,8 +650,8 @@ COMPONENTS = {
 
 
 def main(argv: list[str] | None = None) -> None:
-    from sim.harness.cli import OneLineParser, method_list
-    from sim.harness.validation import MAX_SEED, POSITIVE_INTEGER, integer_option
+    from sim.command_line import MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option
+    from sim.harness.cli import method_list
 
     parser = OneLineParser(prog="python -m sim.harness.bench",
                            description=__doc__.splitlines()[0])

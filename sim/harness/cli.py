@@ -20,11 +20,11 @@ from pathlib import Path
 from typing import NoReturn
 
 from scenarios import DEFAULT_SCENARIO
+from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
+                              number_option, path_option)
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
 from sim.harness.threads import WORKERS_PER_CORE
-from sim.harness.validation import (MAX_SEED, POSITIVE_INTEGER, integer_option, number_option,
-                                    path_option)
 
 #: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
 #: command that SIGPIPE ended.
@@ -260,24 +260,6 @@ def _add_simulation_arguments(parser: argparse.ArgumentParser, out_help: str) ->
     parser.add_argument("--seed", type=integer_option(0, MAX_SEED), default=None,
                         help="override the scenario's seed")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, as every other error of the command:
-    what was wrong, what is accepted, and where the usage is (exit status 2)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
-
-    def parse_args(self, args=None, namespace=None):
-        """As argparse's, but an argument no parser knows is refused by the subcommand's
-        parser, whose --help lists what it accepts (argparse refuses it as the top level's)."""
-        parsed, unknown = self.parse_known_args(args, namespace)
-        if unknown:
-            commands = getattr(self, "commands", None)
-            chosen = commands.choices.get(getattr(parsed, "command", None)) if commands else None
-            (chosen or self).error(f"unrecognized arguments: {' '.join(unknown)}")
-        return parsed
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,13 +8,14 @@ acceptable; ``distinct_list`` checks a list item by item and raises the error it
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from sim.command_line import MAX_SEED
 
 #: A name usable as a file or folder name: letters, digits, '_', '-', '.'.
 SAFE_NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
@@ -90,53 +91,3 @@ def read_toml(path: Path, error: type[FileValueError] = FileValueError) -> dict:
         raise error(str(path), "(file)", "not UTF-8 text", "a TOML 1.0 file") from None
 
 
-def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
-    """An argparse ``type``: an integer of at least ``least`` (and at most ``most``); anything
-    else is refused with the text given and what is accepted."""
-    accepted = (f"an integer >= {least}" if most is None
-                else f"an integer from {least} to {most}")
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < least or (most is not None and value > most):
-            raise argparse.ArgumentTypeError(f"{text!r}: accepted: {accepted}")
-        return value
-
-    return parse
-
-
-def number_option(above: float, most: float) -> Callable[[str], float]:
-    """An argparse ``type``: a number greater than ``above`` and at most ``most``; anything
-    else (NaN, infinity too) is refused with the text given and what is accepted."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not (above < value <= most):  # NaN fails every comparison
-            raise argparse.ArgumentTypeError(f"{text!r}: accepted: a number greater than "
-                                             f"{above:g} and at most {most:g}")
-        return value
-
-    return parse
-
-
-def path_option(text: str) -> Path:
-    """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
-    refused rather than taken for the working directory, and a leading ``~`` that the shell
-    left (quoted, or ``--out=~/x``) is the home folder, as the printed path then says."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"{text!r}: accepted: a path (an empty one, such as an "
-                                         "unset shell variable, is refused; '.' is the working "
-                                         "directory)")
-    return Path(text).expanduser()
-
-
-#: The ``type`` of an option that counts something: workers, frames.
-POSITIVE_INTEGER = integer_option(1)
-#: The largest seed: seeds are stored and logged as signed 64-bit integers.
-MAX_SEED = 2**63 - 1

@@ -11,7 +11,7 @@ Run ``python -m sim.world.render_robot`` to regenerate ``robot_models/humanoid/h
 
 from __future__ import annotations
 
-import argparse
+import sys
 from pathlib import Path
 
 import cv2
@@ -19,9 +19,12 @@ import mujoco
 import numpy as np
 
 from robot_models import HUMANOID_DIR, humanoid_path
+from sim.command_line import OneLineParser, integer_option, path_option
 
 #: Where the README expects the picture.
 DEFAULT_PICTURE_PATH = HUMANOID_DIR / "humanoid.png"
+#: The largest side of the picture, pixels (the offscreen buffer's default size).
+MAX_SIDE_PX = 2048
 
 
 def render_humanoid(width: int = 300, height: int = 400, azimuth_deg: float = 135.0,
@@ -31,7 +34,7 @@ def render_humanoid(width: int = 300, height: int = 400, azimuth_deg: float = 13
     Parameters
     ----------
     width, height : int, optional
-        Image size in pixels (at most 2048 each).
+        Image size in pixels (at most ``MAX_SIDE_PX`` each).
     azimuth_deg : float, optional
         Camera direction around the vertical, degrees (MuJoCo's free-camera azimuth; 180
         looks straight at the robot's front, which faces +x).
@@ -45,8 +48,9 @@ def render_humanoid(width: int = 300, height: int = 400, azimuth_deg: float = 13
     image : (height, width, 3) uint8 ndarray
         The RGB picture.
     """
-    if not (0 < width <= 2048 and 0 < height <= 2048):
-        raise ValueError(f"width and height must be in 1..2048 pixels, got {width} x {height}")
+    if not (0 < width <= MAX_SIDE_PX and 0 < height <= MAX_SIDE_PX):
+        raise ValueError(f"width and height must be in 1..{MAX_SIDE_PX} pixels, got {width} x "
+                         f"{height}")
     if distance_m <= 0:
         raise ValueError(f"distance_m must be > 0, got {distance_m!r}")
     model = mujoco.MjModel.from_xml_path(str(humanoid_path("scene.xml")))
@@ -78,15 +82,26 @@ def save_png(image: np.ndarray, path: Path) -> Path:
     return path
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_PICTURE_PATH, help="PNG to write")
-    parser.add_argument("--width", type=int, default=300, help="pixels")
-    parser.add_argument("--height", type=int, default=400, help="pixels")
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineParser(prog="python -m sim.world.render_robot",
+                           description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=path_option, default=DEFAULT_PICTURE_PATH,
+                        help="PNG to write")
+    parser.add_argument("--width", type=integer_option(1, MAX_SIDE_PX), default=300,
+                        help="pixels")
+    parser.add_argument("--height", type=integer_option(1, MAX_SIDE_PX), default=400,
+                        help="pixels")
     args = parser.parse_args(argv)
-    path = save_png(render_humanoid(args.width, args.height), args.out)
+    if args.out.suffix.lower() != ".png" or not args.out.parent.is_dir():
+        parser.error(f"--out {args.out}: accepted: a .png file in an existing folder")
+    image = render_humanoid(args.width, args.height)
+    try:
+        path = save_png(image, args.out)
+    except OSError as error:
+        parser.error(f"--out {args.out}: {error}; accepted: a writable .png path")
     print(f"wrote {path}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

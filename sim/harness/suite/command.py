@@ -7,7 +7,7 @@ import functools
 from pathlib import Path
 
 from sim.harness.threads import WORKERS_PER_CORE
-from sim.harness.validation import POSITIVE_INTEGER, path_option
+from sim.command_line import POSITIVE_INTEGER, path_option
 
 
 def add_suite_parser(commands, results: Path) -> argparse.ArgumentParser:

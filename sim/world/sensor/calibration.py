@@ -21,11 +21,13 @@ incidence of every pixel of a 176 x 144 image of the wall), without rendering:
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
 
+from sim.command_line import OneLineParser
 from sim.world.camera import SR4000_INTRINSICS
 from sim.world.sensor.materials import NIR_REFLECTIVITY
 from sim.world.sensor.tof_model import TOF_PRESETS, ToFModel, ToFParams
@@ -162,7 +164,10 @@ def material_table(params: ToFParams = TOF_PRESETS["sr4000"],
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
+    # No options: an argument given is refused rather than ignored.
+    OneLineParser(prog="python -m sim.world.sensor.calibration",
+                  description=__doc__.splitlines()[0]).parse_args(argv)
     params = TOF_PRESETS["sr4000"]
     print(calibration_table(params))
     print()
@@ -173,7 +178,8 @@ def main() -> None:
     print(sensitivity_table(params))
     print()
     print(material_table(params))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -12,12 +12,14 @@ presets are in docs/walking.md, "Camera swing".
 
 from __future__ import annotations
 
-import argparse
+import sys
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sim.command_line import OneLineParser, number_option
 from sim.world.camera import SR4000_INTRINSICS
+from sim.world.walking.gait import GAIT_PRESETS
 from sim.world.walking.simulation import RobotSimulation
 from sim.world.assembly import assemble, compile_world
 
@@ -47,6 +49,10 @@ def measure_camera_swing(gait: str = "default", walk_s: float = 12.0, settle_cyc
     cycles, mats = np.array(cycles), np.array(mats)
     first_of_cycle = np.searchsorted(cycles, cycles)      # cycles never decrease
     keep = cycles > cycles[0] + settle_cycles
+    if not keep.any():
+        raise ValueError(f"a walk of {walk_s:g} s ends within its first {settle_cycles + 1} gait "
+                         f"cycles, which are not measured; accepted: a longer walk (the "
+                         f"default is 12 s)")
     angles = relative_camera_angles(mats[first_of_cycle][keep], mats[keep])
     pitch, yaw, roll = angles.T
     k = SR4000_INTRINSICS
@@ -60,19 +66,30 @@ def measure_camera_swing(gait: str = "default", walk_s: float = 12.0, settle_cyc
     }
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=measure_camera_swing.__doc__)
-    parser.add_argument("gaits", nargs="*", default=["default", "paper_like"])
-    parser.add_argument("--seconds", type=float, default=12.0)
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineParser(prog="python -m sim.world.walking.camera_swing",
+                           description=measure_camera_swing.__doc__.splitlines()[0])
+    # Checked below: argparse checks an empty list of a positional against its choices.
+    parser.add_argument("gaits", nargs="*", help=f"gait presets: {', '.join(GAIT_PRESETS)} "
+                                                 f"(default: every one)")
+    parser.add_argument("--seconds", type=number_option(0.0, 3600.0), default=12.0,
+                        help="walking time (default 12 s)")
     args = parser.parse_args(argv)
-    for gait in args.gaits:
-        s = measure_camera_swing(gait, args.seconds)
+    unknown = [gait for gait in args.gaits if gait not in GAIT_PRESETS]
+    if unknown:
+        parser.error(f"gait {unknown[0]!r}: accepted: {', '.join(GAIT_PRESETS)}")
+    for gait in args.gaits or list(GAIT_PRESETS):
+        try:
+            s = measure_camera_swing(gait, args.seconds)
+        except ValueError as error:  # a walk too short to measure
+            parser.error(f"--seconds {args.seconds:g}: {error}")
         print(f"{gait}: pitch [{s['pitch_min_deg']:.1f}, {s['pitch_max_deg']:.1f}] deg, "
               f"yaw [{s['yaw_min_deg']:.1f}, {s['yaw_max_deg']:.1f}] deg, "
               f"roll [{s['roll_min_deg']:.1f}, {s['roll_max_deg']:.1f}] deg; image x "
               f"[{s['x_min_px']:.0f}, {s['x_max_px']:.0f}] px, y [{s['y_min_px']:.0f}, "
               f"{s['y_max_px']:.0f}] px; fell: {s['fell']}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

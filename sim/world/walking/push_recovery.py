@@ -18,14 +18,14 @@ docs/walking.md, "Push recovery": per gait and direction the largest impulse sur
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from sim.world.walking.gait import GaitParams
+from sim.command_line import POSITIVE_INTEGER, OneLineParser, number_option
+from sim.world.walking.gait import GAIT_PRESETS, GaitParams
 from sim.world.walking.simulation import RobotSimulation
 from sim.world.assembly import assemble, compile_world
 
@@ -105,14 +105,16 @@ def largest_survived_impulse(model: mujoco.MjModel, gait: GaitParams | str, dire
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Largest push survived while walking, per "
-                                                 "gait and direction: worst and best seed "
-                                                 "(bisection).")
-    parser.add_argument("--gaits", nargs="*", default=["default", "paper_like"])
-    parser.add_argument("--directions", nargs="*", default=list(DIRECTIONS_DEG),
+    parser = OneLineParser(prog="python -m sim.world.walking.push_recovery",
+                           description="Largest push survived while walking, per gait and "
+                                       "direction: worst and best seed (bisection).")
+    parser.add_argument("--gaits", nargs="+", default=["default", "paper_like"],
+                        choices=sorted(GAIT_PRESETS))
+    parser.add_argument("--directions", nargs="+", default=list(DIRECTIONS_DEG),
                         choices=list(DIRECTIONS_DEG))
-    parser.add_argument("--seeds", type=int, default=4, help="seeds 0 .. N-1")
-    parser.add_argument("--speed", type=float, default=0.1, help="forward speed, m/s")
+    parser.add_argument("--seeds", type=POSITIVE_INTEGER, default=4, help="seeds 0 .. N-1")
+    parser.add_argument("--speed", type=number_option(0.0, 1.0), default=0.1,
+                        help="forward speed, m/s (clipped to the gait's top speed)")
     parser.add_argument("--no-step-adjustment", action="store_true",
                         help="plan the footsteps from the commands alone (the controller before "
                              "push recovery)")

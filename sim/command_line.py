@@ -1,0 +1,81 @@
+"""The command line's conventions, shared by ``egostab`` and the developer tools (``python -m
+sim.harness.bench``, ``python -m sim.world...``, ``benchmarks/``): one-line errors with exit
+status 2, and the argparse types of their options, each refusing a bad value with what it
+accepts."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other error of the command:
+    what was wrong, what is accepted, and where the usage is (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an argument no parser knows is refused by the subcommand's
+        parser, whose --help lists what it accepts (argparse refuses it as the top level's)."""
+        parsed, unknown = self.parse_known_args(args, namespace)
+        if unknown:
+            commands = getattr(self, "commands", None)
+            chosen = commands.choices.get(getattr(parsed, "command", None)) if commands else None
+            (chosen or self).error(f"unrecognized arguments: {' '.join(unknown)}")
+        return parsed
+
+
+def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type``: an integer of at least ``least`` (and at most ``most``); anything
+    else is refused with the text given and what is accepted."""
+    accepted = (f"an integer >= {least}" if most is None
+                else f"an integer from {least} to {most}")
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < least or (most is not None and value > most):
+            raise argparse.ArgumentTypeError(f"{text!r}: accepted: {accepted}")
+        return value
+
+    return parse
+
+
+def number_option(above: float, most: float) -> Callable[[str], float]:
+    """An argparse ``type``: a number greater than ``above`` and at most ``most``; anything
+    else (NaN, infinity too) is refused with the text given and what is accepted."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (above < value <= most):  # NaN fails every comparison
+            raise argparse.ArgumentTypeError(f"{text!r}: accepted: a number greater than "
+                                             f"{above:g} and at most {most:g}")
+        return value
+
+    return parse
+
+
+def path_option(text: str) -> Path:
+    """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
+    refused rather than taken for the working directory, and a leading ``~`` that the shell
+    left (quoted, or ``--out=~/x``) is the home folder, as the printed path then says."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted: a path (an empty one, such as an "
+                                         "unset shell variable, is refused; '.' is the working "
+                                         "directory)")
+    return Path(text).expanduser()
+
+
+#: The ``type`` of an option that counts something: workers, frames.
+POSITIVE_INTEGER = integer_option(1)
+#: The largest seed: seeds are stored and logged as signed 64-bit integers.
+MAX_SEED = 2**63 - 1
