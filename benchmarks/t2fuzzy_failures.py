@@ -598,12 +598,13 @@ def _check_refinements(settings: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from sim.command_line import MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option
+    from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
+                                  path_option)
 
     parser = OneLineParser(prog="t2fuzzy_failures.py", description=__doc__.splitlines()[0])
-    commands = parser.add_subparsers(dest="command", required=True)
+    commands = parser.commands = parser.add_subparsers(dest="command", required=True)
     recorder = commands.add_parser("record", help="record the tuning sequences")
-    recorder.add_argument("--out", type=Path, required=True)
+    recorder.add_argument("--out", type=path_option, required=True)
     recorder.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+",
                           default=list(TUNING_SCENE_SEEDS))
     scorer = commands.add_parser("table", help="before / after / ECC per sequence")
@@ -657,6 +658,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "record":
             check_tuning_seeds(args.seeds)
+            try:
+                args.out.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise ValueError(f"--out {args.out}: {error.strerror}; accepted: a folder that "
+                                 f"can be created and written") from None
         if args.command == "summary":
             _check_refinements(dict(args.refinements))
         sequences = _sequences(args.folders) if hasattr(args, "folders") else None

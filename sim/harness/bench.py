@@ -236,15 +236,16 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
 
     The frames are those :func:`t2fuzzy_corpus_benchmark` times (``walk_frames`` per scene of
     :data:`WALK_SCENARIOS`, reference analysed once per gait cycle, the trust check on), run
-    under ``cProfile``. Each stage's figure is the share of the whole estimate's time spent in
-    it (its cumulative time, so a stage that calls another includes it: the rows nest) and how
-    often it ran per frame. ``cProfile`` adds a cost per Python call, so stages of many small
-    calls read somewhat high: a map of where to look, not a timing (:func:`time_method` is).
+    under ``cProfile``. Each row is a function of the pipeline: how often it ran per estimate
+    (the estimate of each reference itself included) and the share of the estimates' time
+    spent in it, callees included. The stages do not call one another, so their shares add up
+    with "the rest" (what runs outside them) to the whole; the parts run within the stages.
+    ``cProfile`` adds a cost per Python call, so rows of many small calls read somewhat high:
+    a map of where to look, not a timing (:func:`time_method` is).
 
     Returns:
-        {scene: {stage: (calls per frame, share of the estimate's time)}}, also for "the rest"
-        (the share in none of the disjoint stages); "estimate" is (1.0, ms per frame under
-        the profiler).
+        {scene: {row: (calls per estimate, share of the estimates' time)}}, also "the rest";
+        "estimate" is (1.0, ms per estimate under the profiler).
     """
     import cProfile
     import pstats
@@ -276,8 +277,8 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
         return code.co_filename, code.co_firstlineno, code.co_name
 
     figures: dict[str, dict[str, tuple[float, float]]] = {}
-    print(f"t2fuzzy's stages on walking frames under cProfile (one thread; calls a frame and "
-          f"share of the estimate's time; indented: parts of the stages; {_load()})")
+    print(f"t2fuzzy's stages on walking frames under cProfile (one thread; calls per estimate "
+          f"and share of the estimates' time; indented: parts of the stages; {_load()})")
     for scene, scenario in WALK_SCENARIOS.items():
         scenes = simulated_scenes(scenario, walk_frames)
         profile = cProfile.Profile()
@@ -300,7 +301,7 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
             print(f"{indent}{stage:<{60 - len(indent)}} {calls / n_estimates:5.2f} "
                   f"{100 * row[stage][1]:5.1f}%")
         row["the rest"] = (1.0, 1.0 - sum(row[stage][1] for stage in stages))
-        print(f"  {'the rest (calling, wrapping, frame preparation)':<58} {'':5} "
+        print(f"  {'the rest (outside these stages)':<58} {'':5} "
               f"{100 * row['the rest'][1]:5.1f}%")
     return figures
 
