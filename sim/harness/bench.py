@@ -237,15 +237,17 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
     The frames are those :func:`t2fuzzy_corpus_benchmark` times (``walk_frames`` per scene of
     :data:`WALK_SCENARIOS`, reference analysed once per gait cycle, the trust check on), run
     under ``cProfile``. Each row is a function of the pipeline: how often it ran per estimate
-    (the estimate of each reference itself included) and the share of the estimates' time
-    spent in it, callees included. The stages do not call one another, so their shares add up
-    with "the rest" (what runs outside them) to the whole; the parts run within the stages.
+    (the estimate of each reference itself included) and the share of the time spent in it,
+    callees included, of the whole: the estimates and each reference's analysis before them
+    (stages 1-5 of the reference run there). The stages do not call one another, so their
+    shares add up with "the rest" (what runs outside them) to the whole; the parts run within
+    the stages.
     ``cProfile`` adds a cost per Python call, so rows of many small calls read somewhat high:
     a map of where to look, not a timing (:func:`time_method` is).
 
     Returns:
-        {scene: {row: (calls per estimate, share of the estimates' time)}}, also "the rest";
-        "estimate" is (1.0, ms per estimate under the profiler).
+        {scene: {row: (calls per estimate, share of the whole)}}, also "the rest";
+        "estimate" is (1.0, ms of the whole per estimate under the profiler).
     """
     import cProfile
     import pstats
@@ -260,7 +262,8 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
         "stages 1-5 (segmentation, wavelets, ellipses, threshold)": T2FuzzyEstimator.analyse,
         "stage 6, the rotation and shift search": RotationSearch.__call__,
         "stage 6, a disagreement resolved": RotationSearch.resolve_disagreement,
-        "the trust check": Verifier.check,
+        "the trust check's measurements of the frame": Verifier.measure,
+        "the trust check of the estimate": Verifier.check,
         "the second look at a doubted estimate": T2FuzzyEstimator.second_look,
     }
     # Parts of the stages above (a part may run in several of them).
@@ -278,7 +281,8 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
 
     figures: dict[str, dict[str, tuple[float, float]]] = {}
     print(f"t2fuzzy's stages on walking frames under cProfile (one thread; calls per estimate "
-          f"and share of the estimates' time; indented: parts of the stages; {_load()})")
+          f"and share of the time, the references' analyses included; indented: parts of the "
+          f"stages; {_load()})")
     for scene, scenario in WALK_SCENARIOS.items():
         scenes = simulated_scenes(scenario, walk_frames)
         profile = cProfile.Profile()
@@ -288,12 +292,14 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
         timings = pstats.Stats(profile).stats
         n_frames = sum(len(frames) for _, frames in scenes)
         n_estimates = n_frames + len(scenes)  # frame_ms also estimates each reference
-        _, calls, _, whole_s, _ = timings[key(Stabilizer.estimate)]
+        calls = timings[key(Stabilizer.estimate)][1]
         if calls != n_estimates:
             raise RuntimeError(f"{scene}: {calls} estimates profiled, {n_estimates} expected")
+        # The whole: the estimates and each reference's analysis, which runs before them.
+        whole_s = timings[key(frame_ms)][3]
         row = figures[scene] = {"estimate": (1.0, 1e3 * whole_s / n_estimates)}
-        print(f"{scene} ({scenario}): {n_frames} frames, {row['estimate'][1]:.2f} ms a frame "
-              f"under the profiler")
+        print(f"{scene} ({scenario}): {n_frames} frames, {row['estimate'][1]:.2f} ms an "
+              f"estimate under the profiler")
         for stage, function in (*stages.items(), *parts.items()):
             _, calls, _, stage_s, _ = timings.get(key(function), (0, 0, 0.0, 0.0, None))
             row[stage] = (calls / n_estimates, stage_s / whole_s)
@@ -301,7 +307,7 @@ def t2fuzzy_stage_shares(walk_frames: int = 80) -> dict[str, dict[str, tuple[flo
             print(f"{indent}{stage:<{60 - len(indent)}} {calls / n_estimates:5.2f} "
                   f"{100 * row[stage][1]:5.1f}%")
         row["the rest"] = (1.0, 1.0 - sum(row[stage][1] for stage in stages))
-        print(f"  {'the rest (outside these stages)':<58} {'':5} "
+        print(f"  {'the rest (outside these stages, the references set-up too)':<58} {'':5} "
               f"{100 * row['the rest'][1]:5.1f}%")
     return figures
 

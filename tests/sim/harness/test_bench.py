@@ -66,13 +66,14 @@ def test_stage_shares_split_the_estimate_into_its_stages(monkeypatch, capsys):
         rest = row.pop("the rest")[1]
         stages = [share for stage, (_, share) in row.items() if not stage.startswith("climb")
                   and stage not in ("rival motion search", "ECC at full resolution")]
-        assert len(stages) == 5 and all(0.0 <= share <= 1.0 for share in stages), scene
+        assert len(stages) == 6 and all(0.0 <= share <= 1.0 for share in stages), scene
         # Every frame is analysed, searched and checked: most of the time is in the stages.
         assert row["stages 1-5 (segmentation, wavelets, ellipses, threshold)"][0] >= 1.0
-        assert row["the trust check"][0] >= 1.0
+        assert row["the trust check of the estimate"][0] >= 1.0
+        assert row["the trust check's measurements of the frame"][0] > 0.0
         assert 0.0 <= rest < 0.5 and abs(sum(stages) + rest - 1.0) < 1e-9
     printed = capsys.readouterr().out
-    assert "load average" in printed and "the trust check" in printed
+    assert "load average" in printed and "the trust check of the estimate" in printed
 
 
 @pytest.mark.parametrize("argv, named", [
