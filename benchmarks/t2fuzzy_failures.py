@@ -514,6 +514,8 @@ def figures(root: Path, out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from sim.atomic import atomic_path
+
     out.mkdir(parents=True, exist_ok=True)
     for name, index, file_name in FIGURE_CASES:
         frames, references, truth, _ = _frames(root / name)
@@ -547,7 +549,8 @@ def figures(root: Path, out: Path) -> None:
         status = (f"before: {before.status} {np.round(before.as_tuple(), 1)};  "
                   f"t2fuzzy: {after.status} {np.round(after.as_tuple(), 1)}")
         figure.suptitle(status, y=0.02, fontsize=10)
-        figure.savefig(out / file_name, dpi=72, bbox_inches="tight")
+        with atomic_path(out / file_name) as temporary:
+            figure.savefig(temporary, format="png", dpi=72, bbox_inches="tight")
         plt.close(figure)
         print(out / file_name)
 

@@ -545,7 +545,7 @@ def _machine() -> str:
 
 def run_benchmarks(quick: bool = False, out_path=None) -> dict:
     """Every speed figure of the project, measured side by side; optionally as Markdown."""
-    from sim.harness.atomic import write_text_atomic
+    from sim.atomic import write_text_atomic
     from sim.harness.runner import RunConfig, run
 
     n_frames = 60 if quick else 200

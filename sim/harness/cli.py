@@ -84,7 +84,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from sim.harness.runner import RunConfig, run, scenario_name
     from sim.harness.report import terminal_summary
 
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.scenario import load_scenario
     from sim.harness.threads import check_local_workers
 
@@ -100,7 +100,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_record(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.runner import RecordConfig, record, scenario_name
     from sim.harness.scenario import load_scenario
 
@@ -145,7 +145,7 @@ def _sequence_name(sequence: Path) -> str:
 
 
 def _cmd_score(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import check_output_path
+    from sim.atomic import check_output_path
     from sim.harness.report import terminal_summary
     from sim.harness.score import ScoreConfig, estimates_by_name, score
     from sim.harness.sequence import load_sequence
@@ -217,7 +217,7 @@ def _cmd_methods(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.bench import run_benchmarks
 
     if args.out is not None:
@@ -227,7 +227,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import check_output_path, prepare_output_dir
+    from sim.atomic import check_output_path, prepare_output_dir
     from sim.harness.gate import run_gate
 
     if args.update_baseline:
@@ -241,7 +241,7 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 

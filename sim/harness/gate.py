@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from scenarios import SCENARIOS_DIR
-from sim.harness.atomic import prepare_output_dir, write_text_atomic
+from sim.atomic import prepare_output_dir, write_text_atomic
 from sim.harness.interrupts import Interrupted
 
 #: The CI scenario set: short walks (a few seconds each), run by ``egostab gate``.

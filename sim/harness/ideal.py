@@ -347,7 +347,7 @@ def run_ideal(config: IdealConfig) -> dict:
     which, the files hold the frames done), or "error" (the exception is re-raised after the
     files are written); see the module docstring for a run over a finished one.
     """
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.ground_truth import GroundTruth
     from sim.harness.interrupts import interrupt_reason, stop_signals_interrupt, stops_held
     from sim.harness.report import write_run_outputs

@@ -2,7 +2,7 @@
 
 One ``rr.RecordingStream`` per run, saved to a file (no viewer, nothing spawned; open it later
 with ``rerun path/to/recording.rrd``). The file is written under a temporary name and renamed
-when the recorder closes (sim/harness/atomic.py), also when the run ends by an exception or
+when the recorder closes (sim/atomic.py), also when the run ends by an exception or
 Ctrl-C, so it always holds every frame logged before the end. rerun-sdk is pinned (0.41.0):
 .rrd files migrate only from the previous version. docs/recording.md describes the file for its
 readers: how to open it, the layout, and measured file sizes per frame stride.
@@ -49,7 +49,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
-from sim.harness.atomic import atomic_path
+from sim.atomic import atomic_path
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
 from sim.harness.ground_truth import GroundTruth, pixel_rays
 from sim.harness.provenance import provenance

@@ -1,7 +1,7 @@
 """A run's outputs: frames.csv, failures.jsonl, metrics.json, summary.md (the paper's Table I
 layout), plots.
 
-Every file is written atomically (sim/harness/atomic.py), so a run that ends early (a fall,
+Every file is written atomically (sim/atomic.py), so a run that ends early (a fall,
 Ctrl-C) leaves complete files; metrics.json is written last and says how the run ended. The same
 Markdown tables serve summary.md and the one-screen terminal summary; ``score_rows`` reads a
 run's figures back from metrics.json for the tables over several runs (``aggregate_runs`` and
@@ -31,7 +31,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from sim.harness.atomic import atomic_path, prepare_output_dir, write_text_atomic
+from sim.atomic import atomic_path, prepare_output_dir, write_text_atomic
 from sim.harness.provenance import provenance
 from sim.harness.scoring import (AXES, AXIS_UNITS, LARGE_ERROR_DEG, LARGE_ERROR_PX, RECORD_FIELDS,
                                  FrameRecord, MethodScore, RunSummary)

@@ -653,7 +653,7 @@ class RunFolder:
     """
 
     def __init__(self, final_dir: str | os.PathLike):
-        from sim.harness.atomic import remove_stale_temporaries
+        from sim.atomic import remove_stale_temporaries
 
         self.final_dir = Path(final_dir)
         beside = _finished_run(self.final_dir)

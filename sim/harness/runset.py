@@ -144,7 +144,7 @@ def run_on_command_line(kind: str, run: Callable[..., Any], spec: Any, out_dir: 
                         backend: str, workers: int | None, ray_address: str | None) -> int:
     """Run a sweep or suite for ``egostab sweep|suite``: print its tables, each failed run and
     its folder. Returns the exit status: 1 if a run failed, 2 without Ray's extra, else 0."""
-    from sim.harness.atomic import folder_in_use
+    from sim.atomic import folder_in_use
 
     try:
         with folder_in_use(out_dir):  # a second sweep or suite into it is refused

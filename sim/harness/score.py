@@ -86,7 +86,7 @@ def score(config: ScoreConfig) -> dict:
     with the robot's fall), "interrupted" or "error". The run folder is made once the sequence,
     the methods and the estimates files (each read once) are known to be good.
     """
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.methods import check_methods
     from sim.harness.runner import Scoring, score_frames
     from sim.harness.scenario import scenario_from_dict

@@ -23,7 +23,7 @@ from typing import Any, Mapping, Sequence as SequenceOf
 
 import numpy as np
 
-from sim.harness.atomic import atomic_path, write_text_atomic
+from sim.atomic import atomic_path, write_text_atomic
 from sim.harness.validation import FileValueError, is_finite_number, is_int
 from sim.world.camera import CameraIntrinsics, Frame
 from stabilizer import depth_to_disparity

@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from robot_models import HUMANOID_DIR, humanoid_path
+from sim.atomic import atomic_path
 from sim.command_line import OneLineParser, integer_option, path_option
 
 #: Where the README expects the picture.
@@ -74,11 +75,15 @@ def render_humanoid(width: int = 300, height: int = 400, azimuth_deg: float = 13
 
 
 def save_png(image: np.ndarray, path: Path) -> Path:
-    """Write an RGB image as a maximally compressed PNG; returns the path."""
+    """Write an RGB image as a maximally compressed PNG, atomically (an interrupted write
+    leaves the previous picture); returns the path."""
     path = Path(path)
-    if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
-                       [cv2.IMWRITE_PNG_COMPRESSION, 9]):
-        raise OSError(f"could not write {path}")
+    encoded, png = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
+                                [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    if not encoded:
+        raise OSError(f"could not encode {path} as PNG")
+    with atomic_path(path) as temporary:
+        temporary.write_bytes(png.tobytes())
     return path
 
 

@@ -58,7 +58,7 @@ def _estimates(text: str) -> tuple[str, str]:
 
 def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
-    from sim.harness.atomic import prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.score import estimates_by_name
     from sim.harness.suite.run import check_estimates_files, default_suite_dir, run_suite

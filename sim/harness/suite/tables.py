@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from sim.harness.atomic import write_text_atomic
+from sim.atomic import write_text_atomic
 from sim.harness.report import (LARGE_ERRORS_TITLE, MEAN_ERROR_COLUMNS, format_number,
                                 large_errors_cell, markdown_table, score_rows)
 from sim.harness.runner import FELL

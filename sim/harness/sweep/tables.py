@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from sim.harness.atomic import write_text_atomic
+from sim.atomic import write_text_atomic
 from sim.harness.report import (AXIS_TITLES, MEAN_ERROR_COLUMNS, format_number, markdown_table,
                                 save_figure, score_rows)
 from sim.harness.scoring import AXES, AXIS_UNITS

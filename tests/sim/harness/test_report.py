@@ -3,12 +3,10 @@
 import csv
 import json
 import math
-import os
 
 import numpy as np
 import pytest
 
-from sim.harness.atomic import atomic_path, write_text_atomic
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, failures_jsonl_text,
@@ -299,17 +297,6 @@ def test_bad_status_is_rejected(run, tmp_path):
     with pytest.raises(ValueError, match="status"):
         write_run_outputs(tmp_path, scenario={}, records=records, summary=summary, meta={},
                           status="")
-
-
-def test_atomic_write_leaves_the_old_file_when_the_writer_fails(tmp_path):
-    target = tmp_path / "sub" / "file.txt"
-    write_text_atomic(target, "old")
-    with pytest.raises(RuntimeError):
-        with atomic_path(target) as temporary:
-            temporary.write_text("half")
-            raise RuntimeError("crash while writing")
-    assert target.read_text() == "old"
-    assert os.listdir(target.parent) == ["file.txt"]
 
 
 def test_provenance_without_git_is_none(tmp_path):

@@ -483,7 +483,7 @@ def test_runs_made_by_another_version_of_the_sweep_file_run_again(tmp_path):
 
 
 def test_a_folder_in_use_by_another_sweep_or_suite_is_refused(tmp_path, capsys):
-    from sim.harness.atomic import LOCK_FILE, folder_in_use
+    from sim.atomic import LOCK_FILE, folder_in_use
     from sim.harness.cli import main
 
     with folder_in_use(tmp_path):

@@ -3,6 +3,7 @@ the assembled world and the README's picture."""
 
 import math
 import os
+from pathlib import Path
 
 import cv2
 import mujoco
@@ -173,6 +174,23 @@ def test_render_robot_writes_a_picture_of_the_requested_size(tmp_path, capsys):
     # The robot (dark grey) stands in the middle, against the lighter sky and floor.
     middle_column = image[:, 25:35].mean(axis=(1, 2))
     assert middle_column.min() < 0.6 * middle_column.max()
+
+
+def test_an_interrupted_picture_write_leaves_the_previous_picture(tmp_path, monkeypatch):
+    path = tmp_path / "robot.png"
+    render_robot.save_png(np.full((8, 6, 3), 200, np.uint8), path)
+    before = path.read_bytes()
+
+    def stopped_half_way(self, data):
+        with open(self, "wb") as file:
+            file.write(data[: len(data) // 2])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "write_bytes", stopped_half_way)
+    with pytest.raises(KeyboardInterrupt):
+        render_robot.save_png(np.zeros((8, 6, 3), np.uint8), path)
+    assert path.read_bytes() == before
+    assert [entry.name for entry in tmp_path.iterdir()] == ["robot.png"]
 
 
 def test_the_readme_shows_the_rendered_picture():
