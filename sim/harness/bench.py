@@ -676,17 +676,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--methods", type=method_list, default=None,
                         help="comma-separated methods, or all (default: all available)")
     args = parser.parse_args(argv)
-    options = {"--frames": args.frames, "--seed": args.seed, "--scenes": args.scenes,
-               "--methods": args.methods}
+    # Option -> stabilizer_benchmark's parameter; an option not given keeps its default.
+    options = {"--frames": ("n_frames", args.frames), "--seed": ("seed", args.seed),
+               "--scenes": ("n_scenes", args.scenes), "--methods": ("methods", args.methods)}
+    given = {option: pair for option, pair in options.items() if pair[1] is not None}
     if args.component != "stabilizers":
-        given = [option for option, value in options.items() if value is not None]
         if given:
-            parser.error(f"{given[0]} with {args.component}: the options time the stabilizers "
-                         f"only; accepted: {args.component} alone")
+            parser.error(f"{next(iter(given))} with {args.component}: the options time the "
+                         f"stabilizers only; accepted: {args.component} alone")
         COMPONENTS[args.component]()
         return
-    stabilizer_benchmark(args.methods, 200 if args.frames is None else args.frames,
-                         args.seed or 0, args.scenes or 10)
+    stabilizer_benchmark(**dict(given.values()))
 
 
 if __name__ == "__main__":
