@@ -283,3 +283,48 @@ def test_planner_translation_keeps_relative_poses_and_returns_to_the_path():
     np.testing.assert_allclose(planner.zmp_reference(np.array([now])), zmp_before + (0.01, 0.05))
     offsets = [s.centre_offset[1] for s in planner.steps]
     assert offsets[:4] == pytest.approx([0.05, 0.03, 0.01, 0.0], abs=1e-3)
+
+
+def test_the_largest_survived_impulse_is_bisected_to_the_resolution(monkeypatch):
+    """Bisection on [0, upper_ns]: the first trial is at the upper end, each next one halves
+    the interval until it is no wider than the resolution; the answer is the largest impulse
+    shown to be survived."""
+    from sim.world.walking import push_recovery
+
+    asked = []
+
+    def trial(model, gait, impulse_ns, direction_deg, seed, **options):
+        asked.append(impulse_ns)
+        return push_recovery.PushTrial(impulse_ns > 1.3, 3.4, 0.0, 0.0)
+
+    monkeypatch.setattr(push_recovery, "push_trial", trial)
+    assert push_recovery.largest_survived_impulse(None, "default", 90.0) == 1.25
+    assert asked == [8.0, 4.0, 2.0, 1.0, 1.5, 1.25, 1.375]
+    asked.clear()
+    assert push_recovery.largest_survived_impulse(None, "default", 90.0, upper_ns=1.0) == 1.0
+    assert asked == [1.0]
+
+
+def test_the_push_table_gives_the_worst_and_the_best_seed_per_direction(monkeypatch, capsys):
+    """``python -m sim.world.walking.push_recovery``'s table (docs/walking.md, "Push
+    recovery"), with trials in which seed s survives up to 1 + s / 2 N s pushed left and half as
+    much pushed right; the controller's switches reach every trial."""
+    from sim.world.walking import push_recovery
+
+    options_seen = []
+
+    def trial(model, gait, impulse_ns, direction_deg, seed, **options):
+        options_seen.append(options)
+        limit = (1.0 + seed / 2.0) * (1.0 if direction_deg == 90.0 else 0.5)
+        return push_recovery.PushTrial(impulse_ns > limit, 3.4, 0.0, 0.0)
+
+    monkeypatch.setattr(push_recovery, "push_trial", trial)
+    monkeypatch.setattr(push_recovery, "assemble", lambda: None)
+    monkeypatch.setattr(push_recovery, "compile_world", lambda world: None)
+    push_recovery.main(["--gaits", "default", "--directions", "left", "right", "--seeds", "3",
+                        "--no-counterbalance"])
+    assert capsys.readouterr().out.splitlines() == [
+        "| direction | `default`: worst / best seed (N s) |", "|---|---|",
+        "| left | 1.00 / 2.00 |", "| right | 0.50 / 1.00 |"]
+    assert all(options == dict(speed_mps=0.1, step_adjustment=True, com_feedback=True,
+                               counterbalance=False) for options in options_seen)

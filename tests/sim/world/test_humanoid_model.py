@@ -13,7 +13,8 @@ import pytest
 from robot_models import HUMANOID_DIR, humanoid_path
 from sim.world import render_robot
 from sim.world.camera import SR4000_INTRINSICS
-from sim.world.humanoid import CAMERA_NAME, MODEL_NAME, humanoid_mjcf, robot_body_ids
+from sim.world.humanoid import (CAMERA_NAME, CAMERA_SITE_NAME, MODEL_NAME, humanoid_mjcf,
+                                robot_body_ids)
 from sim.world.walking import RobotSimulation
 from sim.world.assembly import assemble, compile_world, floor_arena
 
@@ -96,7 +97,7 @@ def test_camera_intrinsics_match_the_sr4000(world_model):
     fy_px = m.cam_intrinsic[cam][1] / sensor_h * 144
     assert fx_px == pytest.approx(SR4000_INTRINSICS.fx, rel=1e-3)
     assert fy_px == pytest.approx(SR4000_INTRINSICS.fy, rel=1e-3)
-    site = m.site(f"{MODEL_NAME}/sr4000_frame").id
+    site = m.site(CAMERA_SITE_NAME).id
     assert m.site_bodyid[site] == m.cam_bodyid[cam] == m.body(f"{MODEL_NAME}/head").id
     assert m.site_pos[site] == pytest.approx(m.cam_pos[cam])
     assert m.site_quat[site] == pytest.approx(m.cam_quat[cam])

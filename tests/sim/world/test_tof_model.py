@@ -254,3 +254,19 @@ def test_sub_renders_of_one_state_passed_once_give_the_frame_of_copies():
     copies = model.apply([depth, depth.copy(), depth.copy()], np.random.default_rng(5),
                          reflectivity)
     assert all(np.array_equal(a, b) for a, b in zip(shared, copies))
+
+
+def test_the_sensor_document_shows_what_the_calibration_tool_prints(capsys):
+    """docs/sensor.md ("Noise calibration") quotes the tables ``python -m
+    sim.world.sensor.calibration`` prints: a change of the model or of a published figure fails
+    here until the document shows the new tables."""
+    from pathlib import Path
+
+    from sim.world.sensor.calibration import main
+
+    assert main([]) == 0
+    printed = [block.strip() for block in capsys.readouterr().out.split("\n\n")]
+    document = (Path(__file__).parents[3] / "docs" / "sensor.md").read_text()
+    assert len(printed) == 4  # the calibration points, the fit, the sensitivity, the materials
+    for block in printed:
+        assert block in document

@@ -117,6 +117,26 @@ def test_paper_like_camera_swing_reaches_the_papers_magnitudes():
     assert min(-swing["roll_min_deg"], swing["roll_max_deg"]) > 8
 
 
+def test_the_walking_document_shows_the_camera_swing_the_tool_measures(capsys):
+    """docs/walking.md ("Camera swing") tabulates what ``python -m
+    sim.world.walking.camera_swing`` prints for each preset: a change of the gait or of the
+    controller that moves the swing fails here until the table shows the new figures."""
+    import re
+    from pathlib import Path
+
+    from sim.world.walking.camera_swing import main
+
+    assert main([]) == 0
+    document = (Path(__file__).parents[3] / "docs" / "walking.md").read_text()
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == list(GAIT_PRESETS)
+    for line in lines:
+        ranges = re.findall(r"\[(-?[0-9.]+), (-?[0-9.]+)\]", line)
+        assert len(ranges) == 5 and line.endswith("fell: False"), line
+        cells = [f"{low} … {high}".replace("-", "\u2212") for low, high in ranges]
+        row = f"| `{line.split(':')[0]}` | " + " | ".join(cells) + " |"
+        assert row in document, row
+
 def test_same_seed_same_trajectory_bit_for_bit(model):
     def trajectory(seed):
         sim = RobotSimulation(model, seed=seed)
