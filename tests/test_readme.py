@@ -1,0 +1,66 @@
+"""The README's measured tables are the ones the committed results give: a regenerated
+``results/`` whose README was not regenerated with it fails here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sim.harness.report import aggregate_runs
+from sim.harness.scenario import list_scenarios
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results"
+
+
+@pytest.fixture(scope="module")
+def readme() -> str:
+    return (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def section(text: str, heading: str) -> str:
+    """The text under ``heading`` (a whole heading line) up to the next heading of any level."""
+    lines = text.splitlines()
+    start = lines.index(heading) + 1
+    end = next((index for index in range(start, len(lines)) if lines[index].startswith("#")),
+               len(lines))
+    return "\n".join(lines[start:end])
+
+
+def table_rows(text: str) -> list[str]:
+    """The rows of every Markdown table in ``text``, header rows included, rules left out."""
+    return [line for line in text.splitlines()
+            if line.startswith("|") and not line.startswith("|---")]
+
+
+def test_the_shipped_walks_table_is_what_the_committed_runs_aggregate_to(readme):
+    """README, "The paper's method and its peers on the shipped walks": ``egostab aggregate
+    results/<scenario>... --compact`` over every shipped scenario, a row each."""
+    runs = [RESULTS / path.stem for path in list_scenarios()]
+    expected = table_rows(aggregate_runs(runs, compact=True))
+    shown = table_rows(section(readme, "### The paper's method and its peers on the shipped "
+                                       "walks (Table I on simulated frames)"))
+    assert shown[0] == expected[0]
+    assert sorted(shown[1:]) == sorted(expected[1:])
+
+
+def test_the_ideal_experiment_table_is_what_its_committed_runs_aggregate_to(readme):
+    runs = sorted(path for path in (RESULTS / "ideal").iterdir()
+                  if (path / "metrics.json").exists())
+    assert [path.name for path in runs] == ["corridor", "hall", "lab", "office"]
+    expected = table_rows(aggregate_runs(runs, compact=True))
+    shown = table_rows(section(readme, "### The ideal experiment (the paper's section III-A)"))
+    assert shown[1:] and sorted(shown[1:]) == sorted(expected[1:])
+
+
+@pytest.mark.parametrize("heading, source", [
+    ("### Held-out walks: scene layouts no method was tuned on", "suites/heldout/suite.md"),
+    ("### Speed", "bench.md"),
+])
+def test_the_held_out_and_speed_tables_are_copied_from_the_committed_results(readme, heading,
+                                                                               source):
+    shown = table_rows(section(readme, heading))
+    written = set(table_rows((RESULTS / source).read_text(encoding="utf-8")))
+    assert len(shown) > 5
+    assert [row for row in shown if row not in written] == []
