@@ -11,6 +11,7 @@ from sim.world.humanoid import TORSO_BODY_NAME
 from sim.world.walking import GAIT_PRESETS, RobotSimulation
 from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.footsteps import FootstepPlanner, Pose2D
+from sim.world.walking import push_recovery
 from sim.world.walking.push_recovery import (DIRECTIONS_DEG, HEADING_TOLERANCE_DEG,
                                              LATERAL_TOLERANCE_M, push_trial)
 from sim.world.assembly import assemble, compile_world
@@ -289,8 +290,6 @@ def test_the_largest_survived_impulse_is_bisected_to_the_resolution(monkeypatch)
     """Bisection on [0, upper_ns]: the first trial is at the upper end, each next one halves
     the interval until it is no wider than the resolution; the answer is the largest impulse
     shown to be survived."""
-    from sim.world.walking import push_recovery
-
     asked = []
 
     def trial(model, gait, impulse_ns, direction_deg, seed, **options):
@@ -309,8 +308,6 @@ def test_the_push_table_gives_the_worst_and_the_best_seed_per_direction(monkeypa
     """``python -m sim.world.walking.push_recovery``'s table (docs/walking.md, "Push
     recovery"), with trials in which seed s survives up to 1 + s / 2 N s pushed left and half as
     much pushed right; the controller's switches reach every trial."""
-    from sim.world.walking import push_recovery
-
     options_seen = []
 
     def trial(model, gait, impulse_ns, direction_deg, seed, **options):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -15,6 +16,7 @@ from dm_control import mjcf  # noqa: E402
 
 from sim.world.camera import SR4000_INTRINSICS  # noqa: E402
 from sim.world.scenes import SCENES, build_scene  # noqa: E402
+from sim.world.sensor import calibration  # noqa: E402
 from sim.world.sensor.calibration import (  # noqa: E402
     CALIBRATION_POINTS, CALIBRATION_TOLERANCE, DATASHEET_REPEATABILITY, WHITE_WALL_1_3M,
     fitted_noise_floor_m, model_sigma_m)
@@ -260,11 +262,7 @@ def test_the_sensor_document_shows_what_the_calibration_tool_prints(capsys):
     """docs/sensor.md ("Noise calibration") quotes the tables ``python -m
     sim.world.sensor.calibration`` prints: a change of the model or of a published figure fails
     here until the document shows the new tables."""
-    from pathlib import Path
-
-    from sim.world.sensor.calibration import main
-
-    assert main([]) == 0
+    assert calibration.main([]) == 0
     printed = [block.strip() for block in capsys.readouterr().out.split("\n\n")]
     document = (Path(__file__).parents[3] / "docs" / "sensor.md").read_text()
     assert len(printed) == 4  # the calibration points, the fit, the sensitivity, the materials

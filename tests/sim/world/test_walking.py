@@ -3,13 +3,16 @@ parts."""
 
 import itertools
 import math
+import re
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
 from sim.world.humanoid import LEG_JOINTS, MODEL_NAME
-from sim.world.walking import GAIT_PRESETS, FallEvent, GaitParams, RobotSimulation
+from sim.world.walking import (GAIT_PRESETS, FallEvent, GaitParams, RobotSimulation,
+                               camera_swing)
 from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
 from sim.world.walking.footsteps import FootstepPlanner, Pose2D
 from sim.world.walking.gait import resolve_gait
@@ -121,12 +124,7 @@ def test_the_walking_document_shows_the_camera_swing_the_tool_measures(capsys):
     """docs/walking.md ("Camera swing") tabulates what ``python -m
     sim.world.walking.camera_swing`` prints for each preset: a change of the gait or of the
     controller that moves the swing fails here until the table shows the new figures."""
-    import re
-    from pathlib import Path
-
-    from sim.world.walking.camera_swing import main
-
-    assert main([]) == 0
+    assert camera_swing.main([]) == 0
     document = (Path(__file__).parents[3] / "docs" / "walking.md").read_text()
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(":")[0] for line in lines] == list(GAIT_PRESETS)
@@ -136,6 +134,7 @@ def test_the_walking_document_shows_the_camera_swing_the_tool_measures(capsys):
         cells = [f"{low} … {high}".replace("-", "\u2212") for low, high in ranges]
         row = f"| `{line.split(':')[0]}` | " + " | ".join(cells) + " |"
         assert row in document, row
+
 
 def test_same_seed_same_trajectory_bit_for_bit(model):
     def trajectory(seed):
