@@ -1,6 +1,7 @@
 """The humanoid walks under physics: the acceptance walk of docs/walking.md, and the controller's
 parts."""
 
+import dataclasses
 import itertools
 import math
 import re
@@ -134,6 +135,23 @@ def test_the_walking_document_shows_the_camera_swing_the_tool_measures(capsys):
         cells = [f"{low} … {high}".replace("-", "\u2212") for low, high in ranges]
         row = f"| `{line.split(':')[0]}` | " + " | ".join(cells) + " |"
         assert row in document, row
+
+
+def test_the_walking_document_gives_every_gait_parameter_and_the_presets_values():
+    """docs/walking.md, "Gait parameters and presets": a row per GaitParams field, in the
+    class's order, with each preset's value."""
+    document = (Path(__file__).parents[3] / "docs" / "walking.md").read_text()
+    text = document.split("\n## Gait parameters and presets\n", 1)[1].split("\n## ", 1)[0]
+    header = next(line for line in text.splitlines() if line.startswith("| Parameter |"))
+    presets = [cell.strip().strip("`") for cell in header.split("|")[2:-2]]
+    assert presets == list(GAIT_PRESETS)
+    rows = [line.split("|")[1:-1] for line in text.splitlines() if line.startswith("| `")]
+    fields = [field.name for field in dataclasses.fields(GaitParams)]
+    assert [row[0].strip().strip("`") for row in rows] == fields
+    for row in rows:
+        name = row[0].strip().strip("`")
+        for preset, cell in zip(presets, row[1:]):
+            assert float(cell) == getattr(GAIT_PRESETS[preset], name), (name, preset)
 
 
 def test_same_seed_same_trajectory_bit_for_bit(model):
