@@ -268,3 +268,13 @@ def test_the_sensor_document_shows_what_the_calibration_tool_prints(capsys):
     assert len(printed) == 4  # the calibration points, the fit, the sensitivity, the materials
     for block in printed:
         assert block in document
+
+
+def test_the_sensor_document_tabulates_every_materials_reflectivity():
+    """docs/sensor.md's table of near-infrared reflectivities: a row per entry of
+    NIR_REFLECTIVITY, in its order, with its value, range and surface."""
+    document = (Path(__file__).parents[3] / "docs" / "sensor.md").read_text()
+    table = document.split("| Material | rho at 850 nm | Range | Surface assumed |\n", 1)[1]
+    rows = table.split("\n\n", 1)[0].splitlines()[1:]
+    assert rows == [f"| `{name}` | {entry.value:g} | {entry.low:g}-{entry.high:g} | "
+                    f"{entry.surface} |" for name, entry in NIR_REFLECTIVITY.items()]
