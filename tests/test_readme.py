@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -64,3 +65,22 @@ def test_the_held_out_and_speed_tables_are_copied_from_the_committed_results(rea
     written = set(table_rows((RESULTS / source).read_text(encoding="utf-8")))
     assert len(shown) > 5
     assert [row for row in shown if row not in written] == []
+
+
+def test_the_command_table_names_every_command_and_each_of_its_options(readme, capsys):
+    """README, "Commands": a row per ``egostab`` command, naming every option its ``--help``
+    gives, and no other."""
+    from sim.harness.cli import build_parser
+
+    def help_text(*argv: str) -> str:
+        with pytest.raises(SystemExit):
+            build_parser().parse_args([*argv, "--help"])
+        return capsys.readouterr().out
+
+    rows = {match.group(1): set(re.findall(r"--[a-z][a-z-]*", match.group(2)))
+            for match in re.finditer(r"^\| `egostab (\w+)([^`]*)` \|", readme, re.MULTILINE)}
+    commands = re.findall(r"^    ([a-z]+)(?:  |$)", help_text(), re.MULTILINE)  # under COMMAND
+    assert sorted(rows) == sorted(commands)
+    for command in commands:
+        usage = help_text(command).split("\n\n", 1)[0]  # the usage lines: the options only
+        assert rows[command] == set(re.findall(r"--[a-z][a-z-]*", usage)) - {"--help"}, command
