@@ -1,5 +1,6 @@
-"""The README's measured tables are the ones the committed results give: a regenerated
-``results/`` whose README was not regenerated with it fails here."""
+"""The README's tables are the ones the committed results and ``egostab``'s help give: a
+regenerated ``results/`` whose README was not regenerated with it, or a command or option the
+README does not name, fails here."""
 
 from __future__ import annotations
 
