@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from sim.harness.cli import build_parser
 from sim.harness.report import aggregate_runs
 from sim.harness.scenario import list_scenarios
 
@@ -68,10 +69,11 @@ def test_the_held_out_and_speed_tables_are_copied_from_the_committed_results(rea
     assert [row for row in shown if row not in written] == []
 
 
-def test_the_command_table_names_every_command_and_each_of_its_options(readme, capsys):
+def test_the_command_table_names_every_command_and_each_of_its_options(readme, capsys,
+                                                                       monkeypatch):
     """README, "Commands": a row per ``egostab`` command, naming every option its ``--help``
     gives, and no other."""
-    from sim.harness.cli import build_parser
+    monkeypatch.setenv("COLUMNS", "80")  # the help's layout, whatever the terminal's width
 
     def help_text(*argv: str) -> str:
         with pytest.raises(SystemExit):
