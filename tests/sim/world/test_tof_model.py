@@ -27,6 +27,7 @@ from sim.world.sensor.tof_model import TOF_PRESETS, ToFModel, ToFParams  # noqa:
 
 DEFAULT = TOF_PRESETS["sr4000"]
 BAND_REFLECTIVITIES = (0.05, 0.35, 0.6, 0.99)
+SENSOR_DOCUMENT = Path(__file__).resolve().parents[3] / "docs" / "sensor.md"
 
 
 def reflectivity_bands(shape) -> np.ndarray:
@@ -264,7 +265,7 @@ def test_the_sensor_document_shows_what_the_calibration_tool_prints(capsys):
     here until the document shows the new tables."""
     assert calibration.main([]) == 0
     printed = [block.strip() for block in capsys.readouterr().out.split("\n\n")]
-    document = (Path(__file__).parents[3] / "docs" / "sensor.md").read_text()
+    document = SENSOR_DOCUMENT.read_text()
     assert len(printed) == 4  # the calibration points, the fit, the sensitivity, the materials
     for block in printed:
         assert block in document
@@ -273,7 +274,7 @@ def test_the_sensor_document_shows_what_the_calibration_tool_prints(capsys):
 def test_the_sensor_document_tabulates_every_materials_reflectivity():
     """docs/sensor.md's table of near-infrared reflectivities: a row per entry of
     NIR_REFLECTIVITY, in its order, with its value, range and surface."""
-    document = (Path(__file__).parents[3] / "docs" / "sensor.md").read_text()
+    document = SENSOR_DOCUMENT.read_text()
     table = document.split("| Material | rho at 850 nm | Range | Surface assumed |\n", 1)[1]
     rows = table.split("\n\n", 1)[0].splitlines()[1:]
     assert rows == [f"| `{name}` | {entry.value:g} | {entry.low:g}-{entry.high:g} | "

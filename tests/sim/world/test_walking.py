@@ -22,6 +22,7 @@ from sim.world.walking.preview import ZmpPreviewController
 from sim.world.assembly import assemble, compile_world, free_joint_qpos_address
 
 TIMEOUT_S = 60.0
+WALKING_DOCUMENT = Path(__file__).resolve().parents[3] / "docs" / "walking.md"
 
 
 @pytest.fixture(scope="module")
@@ -126,21 +127,21 @@ def test_the_walking_document_shows_the_camera_swing_the_tool_measures(capsys):
     sim.world.walking.camera_swing`` prints for each preset: a change of the gait or of the
     controller that moves the swing fails here until the table shows the new figures."""
     assert camera_swing.main([]) == 0
-    document = (Path(__file__).parents[3] / "docs" / "walking.md").read_text()
+    document = WALKING_DOCUMENT.read_text()
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(":")[0] for line in lines] == list(GAIT_PRESETS)
-    for line in lines:
+    for preset, line in zip(GAIT_PRESETS, lines):
         ranges = re.findall(r"\[(-?[0-9.]+), (-?[0-9.]+)\]", line)
         assert len(ranges) == 5 and line.endswith("fell: False"), line
         cells = [f"{low} … {high}".replace("-", "\u2212") for low, high in ranges]
-        row = f"| `{line.split(':')[0]}` | " + " | ".join(cells) + " |"
+        row = f"| `{preset}` | " + " | ".join(cells) + " |"
         assert row in document, row
 
 
 def test_the_walking_document_gives_every_gait_parameter_and_the_presets_values():
     """docs/walking.md, "Gait parameters and presets": a row per GaitParams field, in the
     class's order, with each preset's value."""
-    document = (Path(__file__).parents[3] / "docs" / "walking.md").read_text()
+    document = WALKING_DOCUMENT.read_text()
     text = document.split("\n## Gait parameters and presets\n", 1)[1].split("\n## ", 1)[0]
     header = next(line for line in text.splitlines() if line.startswith("| Parameter |"))
     presets = [cell.strip().strip("`") for cell in header.split("|")[2:-2]]
