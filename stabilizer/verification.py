@@ -20,7 +20,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from stabilizer.fncc import MaskedCorrelation, surface_peak
+from stabilizer.fncc import MaskedCorrelation, MaskedSpectra, surface_peak
 from stabilizer.inputs import (
     MAX_ITERATIONS,
     MAX_SIGMA_PX,
@@ -45,6 +45,10 @@ UNVERIFIED = "unverified"
 #: walking frames of docs/method.md, section 11, the whole frame decided as this did, at 0.6x
 #: the cost.
 RIVAL_REACH_PX = 72
+#: How far (full-resolution pixels along each axis) :meth:`Verifier.far_offset` looks for the
+#: shift that lines up the far depths' edges best: beyond the largest offset an estimate may
+#: leave them at (:attr:`VerificationParams.max_far_offset_px`).
+FAR_REACH_PX = 16
 #: Every uint8 disparity, for the depth test's table of tolerances.
 _LEVELS = np.arange(256, dtype=np.float32)
 #: Smallest clip limit of the edge responses (gray levels per pixel²): a scene of flat
@@ -137,6 +141,20 @@ class VerificationParams:
             one rigid scene seen twice agrees in depth where the edges line up; two scenes that
             share only a floor, whose objects' edges a sideways shift lines up, do not
             (docs/method.md, section 11, "Depth"). 1: off.
+        max_far_offset_px: the largest shift (full-resolution pixels) at which the far half of
+            the reference's depths (at or beyond its median distance) may line its depth edges
+            up best with those of the frame compensated by the estimate
+            (:meth:`Verifier.far_offset`). The image motion of far surfaces is the camera's
+            turn, which stabilization undoes; near ones add the parallax of the camera's own
+            translation (a sideways sway moves near furniture across far walls; walking forward
+            spreads near walls apart). An estimate that leaves the far surfaces this far out of
+            line followed the near ones. Default 7 px (docs/method.md, section 11, "Near and
+            far"); ``math.inf``: off.
+        far_margin: the far depths lined up best beyond ``max_far_offset_px`` fail the estimate
+            only when they score more than this above their score at the estimate (weighted
+            masked NCC, as :meth:`Verifier.shift_rival`'s): far surfaces with too little
+            structure of their own to pin a shift down (a smooth floor, noise) peak anywhere by
+            a little. Default 0.03 (docs/method.md, section 11, "Near and far").
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
     """
@@ -162,6 +180,8 @@ class VerificationParams:
     depth_tolerance_share: float = 0.2
     depth_tolerance_noise: float = 2.0
     max_depth_disagreement: float = 0.08
+    max_far_offset_px: float = 7.0
+    far_margin: float = 0.03
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
 
     def __post_init__(self):
@@ -175,11 +195,13 @@ class VerificationParams:
         check_number("sigma_px", self.sigma_px, 0.0, MAX_SIGMA_PX, open_low=True)
         check_number("clip_factor", self.clip_factor, 0.0, open_low=True)
         check_integer("optimum_iterations", self.optimum_iterations, 1, MAX_ITERATIONS)
-        for name in ("full_resolution_offset_deg", "full_resolution_travel_deg"):
+        for name in ("full_resolution_offset_deg", "full_resolution_travel_deg",
+                     "max_far_offset_px"):
             if getattr(self, name) != math.inf:  # math.inf: never
                 check_number(name, getattr(self, name), 0.0)
         check_number("convincing_correlation", self.convincing_correlation, -1.0, 1.0)
-        for name in ("candidate_margin", "outside_margin", "ridge_margin"):  # may be < 0
+        for name in ("candidate_margin", "outside_margin", "ridge_margin",
+                     "far_margin"):  # may be < 0
             check_number(name, getattr(self, name))
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
 
@@ -407,7 +429,12 @@ class Verifier:
     6. when the uncompensated frame scores within ``null_margin`` of the optimum and agrees in
        depth about as well as the compensated one (less than ``moved_depth_share`` more of the
        pixels disagree: the frames did not move, as far as the check can tell), the estimate
-       moves by at most ``still_deg`` and ``still_px``: no invented motion.
+       moves by at most ``still_deg`` and ``still_px``: no invented motion;
+    7. (checked before the searches of test 5, which cost more) the far half of the
+       reference's depths lines its depth edges up best within ``max_far_offset_px`` of the
+       estimate, or not by more than ``far_margin`` better than at the estimate
+       (:meth:`far_offset`): the estimate undoes the camera's turn, which moves the far
+       surfaces, and did not follow the near ones' parallax.
 
     Judging the correlation at the optimum rather than at the estimate makes the check fair to
     estimates a pixel or two off on noisy frames, whose own correlation drops steeply with the
@@ -444,11 +471,67 @@ class Verifier:
         # limits of a shift: where a ridge through it continues.
         rows, cols = np.nonzero(~self._within_offset & (distance <= params.max_offset_px + 2.0))
         self._ring = (rows - reach, cols - reach)
+        # The far half of the reference's depths (test 7).
+        self._far = MaskedCorrelation(half.shape, min(FAR_REACH_PX // 2, min(half.shape) - 1),
+                                      params.min_overlap)
+        self._reference_far = (self._far_spectra(reference)
+                               if params.max_far_offset_px != math.inf else None)
         # The search's turn-backs depend on the frame size alone: made once per reference.
         centre = tuple(value / 2.0 for value in image_centre(self._reference[0].shape))
         self._turn_backs = [(angle, cv2.getRotationMatrix2D(centre, -angle, 1.0),
                              rotation_matrix(math.radians(angle)))
                             for angle in params.candidate_angles_deg]
+
+    def _far_spectra(self, reference: np.ndarray) -> MaskedSpectra | None:
+        """The reference's half-resolution edge image on its far depths, as the fixed frame of
+        the far depths' masked correlation: the pixels at or below the median disparity of its
+        measured pixels, with those within 1.5 ``sigma_px`` of them (where the smoothing still
+        sees their depth steps, as in :func:`edge_image`); None without such a pixel."""
+        measured = reference[reference > 0]
+        if not measured.size:
+            return None
+        far = ((reference > 0) & (reference <= np.median(measured))).view(np.uint8)
+        radius = max(1, math.ceil(1.5 * self.params.sigma_px))
+        window = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
+        half, half_measured = self._reference_half
+        mask = cv2.resize(cv2.dilate(far, window), half.shape[::-1],
+                          interpolation=cv2.INTER_NEAREST)
+        mask = cv2.bitwise_and(mask, half_measured)
+        return self._far.spectra(half, mask.view(bool), moving=False) \
+            if cv2.countNonZero(mask) else None
+
+    def far_offset(self, compensated_half: tuple[np.ndarray, np.ndarray]
+                   ) -> tuple[float, float] | None:
+        """The length (full-resolution pixels) of the shift that lines the reference's far
+        depths' edges (:meth:`_far_spectra`) up best with the current frame's compensated by
+        the estimate (``compensated_half``: its half-resolution edge image and measured mask,
+        bool), and how much better it scores there than at no shift (at the estimate):
+        weighted masked NCC over every shift up to :data:`FAR_REACH_PX` along each axis
+        (:class:`~stabilizer.fncc.MaskedCorrelation`, Padfield 2012; weighted as in
+        :meth:`shift_rival`). None when there are no far depths, or their overlap is too small
+        or flat at every shift."""
+        if self._reference_far is None:
+            return None
+        reach = self._far.max_shift
+        scores = self._far.surface(self._reference_far,
+                                   self._far.spectra(*compensated_half, moving=True),
+                                   weighted=True)
+        found = surface_peak(scores, reach)
+        if not math.isfinite(found.peak):
+            return None
+        return 2.0 * math.hypot(found.x, found.y), found.peak - float(scores[reach, reach])
+
+    def _compensated_half(self, current_half: tuple[np.ndarray, np.ndarray],
+                          motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+        """The current frame's half-resolution edge image and measured mask (bool), compensated
+        by ``motion`` (the inverse warp; bilinear, the mask by nearest neighbour)."""
+        half, measured = current_half
+        size = half.shape[::-1]
+        warp = motion_matrix(motion, self._reference[0].shape)
+        warp[:, 2] *= 0.5  # a half-resolution pixel is x / 2: the rotation stays
+        inverse = cv2.WARP_INVERSE_MAP
+        return (cv2.warpAffine(half, warp, size, flags=cv2.INTER_LINEAR | inverse),
+                cv2.warpAffine(measured, warp, size, flags=cv2.INTER_NEAREST | inverse).view(bool))
 
     def _windowed(self, half: np.ndarray, padded: np.ndarray | None = None) -> np.ndarray:
         """A half-resolution edge image times the Hanning window, zero-padded to even DFT sizes
@@ -556,17 +639,17 @@ class Verifier:
         ``verify_correlation``, ``verify_overlap``, ``verify_null_correlation`` (the
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
-        optimum), ``verify_depth_disagreement``, and ``verify_null_depth_disagreement`` (the
-        uncompensated frame's) where test 6 needed it; otherwise a failed Motion with the status
-        ``"unverified"``, the same diagnostics, ``verify_failed`` (``"overlap"``,
-        ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"ambiguous"`` or ``"no_motion"``:
-        the first test failed; a turn beyond the searched angles without a convincing optimum
-        adds ``verify_beyond_search`` (True), a rival
-        ``verify_candidate`` and ``verify_candidate_correlation``, and a rival shift
-        (:meth:`shift_rival`, whose scores are its own) ``verify_shift_correlation``, the
-        estimate's score on the same scale, and ``verify_ridge``) and the rejected
-        estimate as ``unverified_motion``. A Motion that is already a failure is returned as it
-        is."""
+        optimum), ``verify_depth_disagreement``, ``verify_far_offset`` (the offset and score
+        gain of test 7) where it was measured, and ``verify_null_depth_disagreement`` (the
+        uncompensated frame's) where test 6 needed it; otherwise a failed Motion with the
+        status ``"unverified"``, the same diagnostics, ``verify_failed`` (``"overlap"``,
+        ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"parallax"``, ``"ambiguous"`` or
+        ``"no_motion"``: the first test failed; a turn beyond the searched angles without a
+        convincing optimum adds ``verify_beyond_search`` (True), a rival ``verify_candidate`` and
+        ``verify_candidate_correlation``, and a rival shift (:meth:`shift_rival`, whose scores are
+        its own) ``verify_shift_correlation``, the estimate's score on the same scale, and
+        ``verify_ridge``) and the rejected estimate as ``unverified_motion``. A Motion that is
+        already a failure is returned as it is."""
         if not motion.ok:
             return motion
         params = self.params
@@ -604,7 +687,14 @@ class Verifier:
             failed = "ambiguous"
             diagnostics["verify_beyond_search"] = True
         if failed is None:
-            rival = self.shift_rival(current_half, motion)
+            compensated_half = self._compensated_half(current_half, motion)
+            far = self.far_offset(compensated_half)
+            if far is not None:
+                diagnostics["verify_far_offset"] = far
+                if far[0] > params.max_far_offset_px and far[1] > params.far_margin:
+                    failed = "parallax"
+        if failed is None:
+            rival = self.shift_rival(compensated_half, motion)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival.motion.as_tuple(),
@@ -641,12 +731,13 @@ class Verifier:
                                   params.depth_tolerance_share,
                                   params.depth_tolerance_noise * current.noise)
 
-    def shift_rival(self, current_half: tuple[np.ndarray, np.ndarray],
+    def shift_rival(self, compensated_half: tuple[np.ndarray, np.ndarray],
                     motion: Motion) -> ShiftRival | None:
         """A motion at the rotation of ``motion``, with a shift beyond the offset limits, that
         lines the depth edges up about as well as the estimate or better; None if there is none.
 
-        The current frame's half-resolution edge image, compensated by ``motion``, is correlated
+        The current frame's half-resolution edge image, compensated by ``motion``
+        (``compensated_half``: edges and measured mask, bool), is correlated
         with the reference's at every shift that keeps ``min_overlap`` of the reference's
         measured pixels, all at once (masked NCC, :class:`~stabilizer.fncc.MaskedCorrelation`,
         Padfield 2012), each NCC weighted by the share of both frames' edges its overlap holds
@@ -662,15 +753,7 @@ class Verifier:
         or if it cannot be scored (too little overlap, a flat one): the frames do not pin the
         shift down to the limits.
         """
-        half, measured = current_half
-        size = half.shape[::-1]
-        warp = motion_matrix(motion, self._reference[0].shape)
-        warp[:, 2] *= 0.5  # a half-resolution pixel is x / 2: the rotation stays
-        inverse = cv2.WARP_INVERSE_MAP
-        compensated = self._shifts.spectra(
-            cv2.warpAffine(half, warp, size, flags=cv2.INTER_LINEAR | inverse),
-            cv2.warpAffine(measured, warp, size, flags=cv2.INTER_NEAREST | inverse).view(bool),
-            moving=True)
+        compensated = self._shifts.spectra(*compensated_half, moving=True)
         plain, scores = self._shifts.surfaces(self._reference_shifts, compensated)
         here = float(scores[self._within_offset].max())
         peaks = cv2.dilate(scores, np.ones((3, 3), np.uint8)) == scores

@@ -44,6 +44,9 @@ CURRENT = apply_motion(REFERENCE, TRUTH)
 #: The check without its depth test, to show the tests after it on frames that also disagree in
 #: depth.
 WITHOUT_DEPTH = VerificationParams(max_depth_disagreement=1.0)
+#: The check without its tests of the frames' depths (test 4, and test 7 of the far depths), to
+#: show the shift search on unrelated frames that these fail first.
+WITHOUT_DEPTHS = VerificationParams(max_depth_disagreement=1.0, max_far_offset_px=math.inf)
 
 
 def test_the_true_motion_passes_with_its_measurements():
@@ -111,6 +114,36 @@ def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
     assert measured["verify_depth_disagreement"] < 0.01
     edges_alone = Verifier(reference, replace(params, moved_depth_share=1.0))(current, truth)
     assert edges_alone.diagnostics["verify_failed"] == "no_motion"
+    # Walking forward spreads the near walls apart, which no shift lines up; the far depths,
+    # which test 7 looks at, move with the truth.
+    assert measured["verify_far_offset"][0] < 2.0
+
+
+def near_and_far_frame(walls_dx: int, boxes_dx: int) -> np.ndarray:
+    """Two near boxes before far walls with depth steps (disparity 40 and 44), each moved
+    sideways by its own number of pixels: the parallax of a camera that sways sideways."""
+    columns = np.arange(SR4000_SHAPE[1]) - walls_dx
+    steps = np.searchsorted([5, 125, 140, 155, 170], columns)
+    image = np.repeat((40 + 4 * (steps % 2)).astype(np.uint8)[None], SR4000_SHAPE[0], 0)
+    image[40:110, 20 + boxes_dx:70 + boxes_dx] = 200
+    image[50:100, 90 + boxes_dx:110 + boxes_dx] = 170
+    return image
+
+
+def test_an_estimate_that_follows_the_near_surfaces_across_the_far_ones_fails():
+    """The walls moved 10 px, the boxes stayed: no motion lines the boxes up and passes every
+    other test, but leaves the far depths 10 px out of line (test 7); one rigid motion of both
+    passes it."""
+    reference = near_and_far_frame(0, 0)
+    current, boxes = near_and_far_frame(10, 0), Motion(0.0, 0.0, 0.0)
+    assert Verifier(reference, VerificationParams(max_far_offset_px=math.inf))(current,
+                                                                             boxes).ok
+    checked = Verifier(reference)(current, boxes)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "parallax"
+    offset, gain = checked.diagnostics["verify_far_offset"]
+    assert offset == pytest.approx(10.0, abs=1.0) and gain > VerificationParams().far_margin
+    rigid = Verifier(reference)(near_and_far_frame(6, 6), Motion(0.0, 6.0, 0.0))
+    assert rigid.ok and rigid.diagnostics["verify_far_offset"][0] < 1.0
 
 
 def test_an_estimate_away_from_the_optimum_fails():
@@ -201,10 +234,11 @@ def test_a_sideways_estimate_between_unrelated_scenes_on_one_floor_is_ambiguous(
     """Two unrelated two-object scenes on one floor (cases of benchmarks/trust_properties.py,
     seed 5, where `t2fuzzy` returned these motions): the floor's horizon lines up under any
     sideways shift, so the shift search at the estimate's rotation finds another shift along it
-    that lines up about as much of the frames. (The frames may also disagree in depth, which
-    fails the estimate first; the shift search is shown with that test switched off.)"""
+    that lines up about as much of the frames. (The frames may also disagree in depth, or leave
+    the far depths out of line, which fails the estimate first; the shift search is shown with
+    those tests switched off.)"""
     reference, current = floor_scenes(seeds, shape)
-    checked = Verifier(reference, WITHOUT_DEPTH)(current, sideways)
+    checked = Verifier(reference, WITHOUT_DEPTHS)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
     assert abs(rival.dx - sideways.dx) > 10.0 and abs(rival.dy - sideways.dy) < 3.0
@@ -243,13 +277,16 @@ def test_a_ridge_that_runs_out_of_overlap_is_ambiguous(seeds, shape, sideways):
     where `t2fuzzy` returned these motions): the overlap keeps little more than `min_overlap`
     and holds only the floor's crease, so the shifts farther along it cannot be scored. Not shown
     to score lower, they fail the estimate; where they can be scored (a smaller `min_overlap`),
-    the ridge goes on within `ridge_margin`."""
+    the ridge goes on within `ridge_margin`. (The far depths, out of line, may fail the estimate
+    first; the shift search is shown with that test switched off.)"""
     reference, current = floor_scenes(seeds, shape)
-    checked = Verifier(reference)(current, sideways)
+    assert Verifier(reference)(current, sideways).status == UNVERIFIED
+    without_far = VerificationParams(max_far_offset_px=math.inf)
+    checked = Verifier(reference, without_far)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is True
     assert checked.diagnostics["verify_candidate_correlation"] == -math.inf
-    scored = Verifier(reference, VerificationParams(min_overlap=0.1))(current, sideways)
+    scored = Verifier(reference, replace(without_far, min_overlap=0.1))(current, sideways)
     assert scored.diagnostics["verify_ridge"] is True
     assert (scored.diagnostics["verify_shift_correlation"]
             - scored.diagnostics["verify_candidate_correlation"]) < VerificationParams().ridge_margin
@@ -591,6 +628,9 @@ def test_thresholds_are_parameters():
                                  dict(still_px=-0.5), dict(optimum_iterations=0),
                                  dict(full_resolution_offset_deg=-1.0),
                                  dict(full_resolution_travel_deg=-1.0),
+                                 dict(max_far_offset_px=-1.0),
+                                 dict(max_far_offset_px=math.nan),
+                                 dict(far_margin=math.nan),
                                  dict(depth_tolerance_levels=-1.0),
                                  dict(depth_tolerance_noise=-1.0),
                                  dict(max_depth_disagreement=1.5),
