@@ -240,15 +240,21 @@ def edge_image(image: np.ndarray, sigma_px: float,
         weight = cv2.sepFilter2D(valid, cv2.CV_32F, gaussian, gaussian)
         smoothed = cv2.divide(smoothed, cv2.max(weight, 1e-3))
     laplacian = cv2.Laplacian(smoothed, cv2.CV_32F, ksize=3)
-    radius = max(1, math.ceil(1.5 * sigma_px))
-    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
-    measured = cv2.erode(valid, kernel, borderValue=1)
+    measured = cv2.erode(valid, _step_reach(sigma_px), borderValue=1)
     laplacian *= measured
     # A robust scale of the responses: their median over every other row and column.
     responses = np.abs(laplacian[::2, ::2][measured[::2, ::2].view(bool)])
     scale = clip_factor * _median(responses) if responses.size else 0.0
     limit = max(scale, MIN_CLIP)
     return np.clip(laplacian, -limit, limit, out=laplacian), measured
+
+
+def _step_reach(sigma_px: float) -> np.ndarray:
+    """The square of pixels within 1.5 ``sigma_px`` of a pixel (at least 1): how far the edge
+    image's smoothing still sees a depth step, as a structuring element for ``cv2.erode`` and
+    ``cv2.dilate``."""
+    radius = max(1, math.ceil(1.5 * sigma_px))
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
 
 
 def _median(values: np.ndarray) -> float:
@@ -485,16 +491,14 @@ class Verifier:
     def _far_spectra(self, reference: np.ndarray) -> MaskedSpectra | None:
         """The reference's half-resolution edge image on its far depths, as the fixed frame of
         the far depths' masked correlation: the pixels at or below the median disparity of its
-        measured pixels, with those within 1.5 ``sigma_px`` of them (where the smoothing still
-        sees their depth steps, as in :func:`edge_image`); None without such a pixel."""
+        measured pixels, with those within 1.5 ``sigma_px`` of them (:func:`_step_reach`, where
+        the smoothing still sees their depth steps); None without such a pixel."""
         measured = reference[reference > 0]
         if not measured.size:
             return None
         far = ((reference > 0) & (reference <= np.median(measured))).view(np.uint8)
-        radius = max(1, math.ceil(1.5 * self.params.sigma_px))
-        window = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius + 1, 2 * radius + 1))
         half, half_measured = self._reference_half
-        mask = cv2.resize(cv2.dilate(far, window), half.shape[::-1],
+        mask = cv2.resize(cv2.dilate(far, _step_reach(self.params.sigma_px)), half.shape[::-1],
                           interpolation=cv2.INTER_NEAREST)
         mask = cv2.bitwise_and(mask, half_measured)
         return self._far.spectra(half, mask.view(bool), moving=False) \
