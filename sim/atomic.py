@@ -61,7 +61,12 @@ def check_output_path(path: str | os.PathLike, option: str = "--out") -> Path:
     """``path`` as a Path, or ValueError (one line) when it exists and is not a folder; makes
     nothing, so that a command with two output folders can check both before making either."""
     folder = Path(path)
-    if folder.exists() and not folder.is_dir():
+    try:
+        exists = folder.exists()
+    except OSError as error:  # a name longer than the system allows, say
+        raise ValueError(f"{option} {folder}: cannot be looked up ({error.strerror or error}); "
+                         "accepted: a folder this user can create and write") from None
+    if exists and not folder.is_dir():
         raise ValueError(f"{option} {folder}: exists and is not a folder; accepted: a folder "
                          "(created if missing)")
     return folder

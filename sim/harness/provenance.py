@@ -61,13 +61,20 @@ def _git(*args: str, cwd: Path) -> str | None:
     return completed.stdout.strip() if completed.returncode == 0 else None
 
 
+#: Outputs, not code: a change there leaves the work tree's code at its commit.
+OUTPUT_FOLDER = "results"
+
+
 @lru_cache(maxsize=4)
 def git_state(root: Path = SOURCE_ROOT) -> dict[str, str | bool | None]:
-    """``{"commit": sha or None, "dirty": bool or None}`` of the work tree at ``root``."""
+    """``{"commit": sha or None, "dirty": bool or None}`` of the work tree at ``root``; dirty
+    when a tracked file outside ``results/`` differs from the commit (a run rewriting the
+    committed results leaves the next run's code as clean as it was)."""
     commit = _git("rev-parse", "HEAD", cwd=root)
     if not commit:
         return {"commit": None, "dirty": None}
-    status = _git("status", "--porcelain", "--untracked-files=no", cwd=root)
+    status = _git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                  f":(top,exclude){OUTPUT_FOLDER}", cwd=root)
     return {"commit": commit, "dirty": None if status is None else bool(status)}
 
 

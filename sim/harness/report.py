@@ -552,9 +552,25 @@ def aggregate_runs(run_dirs: Iterable[str | Path], out_path: str | Path | None =
                          "table")
     table = _compact_table(runs) if compact else _long_table(runs)
     if out_path is not None:  # its folder made only now: a refused table leaves none behind
+        _check_not_a_run_file(Path(out_path), runs)
         prepare_output_dir(Path(out_path).parent, option="--out's folder")
         write_text_atomic(out_path, table + "\n")
     return table
+
+
+def _check_not_a_run_file(out_path: Path, runs: list[Path]) -> None:
+    """ValueError when ``out_path`` is the metrics.json of one of ``runs`` or a file it lists:
+    the table would replace what it was read from."""
+    target = out_path.resolve()
+    for run in runs:
+        folder = run if run.is_dir() else run.parent
+        listed = read_metrics(run).get("files")
+        names = [METRICS_JSON]
+        for entry in (listed.values() if isinstance(listed, dict) else ()):
+            names.extend(entry if isinstance(entry, list) else [entry])
+        if any(isinstance(name, str) and (folder / name).resolve() == target for name in names):
+            raise ValueError(f"--out {out_path}: is a file of the run {folder}; accepted: a path "
+                             f"other than the runs' own files")
 
 
 def _compact_table(runs: list[Path]) -> str:

@@ -137,7 +137,38 @@ def command_line_backend(ray: bool, ray_address: str | None, workers: int | None
                          f"on this machine")
     if not ray:
         check_local_workers(workers)
+    elif ray_address is not None:
+        check_ray_address(ray_address)
     return "ray" if ray else "local"
+
+
+#: Ray's own words for "find the cluster" and "start one here".
+RAY_ADDRESS_WORDS = ("auto", "local")
+#: How long a Ray head has to answer; Ray itself retries an address nobody answers for minutes.
+RAY_CONNECT_TIMEOUT_S = 5.0
+
+
+def check_ray_address(address: str) -> None:
+    """A ValueError of one line unless ``address`` is one of :data:`RAY_ADDRESS_WORDS` or a
+    ``host:port`` (``ray://host:port``) where something accepts a connection: Ray, given an
+    address nobody answers at, logs its retries and waits for minutes."""
+    import socket
+
+    accepted = (f"accepted: {' or '.join(repr(word) for word in RAY_ADDRESS_WORDS)}, or the "
+                f"HOST:PORT (ray://HOST:PORT for Ray Client) of a running Ray cluster's head")
+    if address in RAY_ADDRESS_WORDS:
+        return
+    host, separator, port = address.removeprefix("ray://").rpartition(":")
+    host = host.strip("[]")  # an IPv6 host is written in brackets
+    if not (separator and host and port.isascii() and port.isdigit()
+            and 0 < int(port) < 65536):
+        raise ValueError(f"--ray-address {address!r}: is not an address; {accepted}")
+    try:
+        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as error:
+        reason = error.strerror or type(error).__name__
+        raise ValueError(f"--ray-address {address}: nothing answers at {host}:{port} ({reason}); "
+                         f"{accepted}") from None
 
 
 def run_on_command_line(kind: str, run: Callable[..., Any], spec: Any, out_dir: Path,

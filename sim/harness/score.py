@@ -313,10 +313,13 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
             if not (text.isascii() and text.isdigit()):
                 raise FileValueError(where, "frame",
                                      f"{_shortened(text)!r} is not a frame number", frames)
-            frame = int(text)
-            if frame >= n_frames:
-                raise FileValueError(where, "frame", f"{frame} is not a frame of the sequence",
+            # Compared by length first: int() refuses strings of thousands of digits.
+            digits = text.lstrip("0") or "0"
+            if len(digits) > len(str(n_frames)) or int(digits) >= n_frames:
+                raise FileValueError(where, "frame",
+                                     f"{_shortened(digits)} is not a frame of the sequence",
                                      frames)
+            frame = int(digits)
             if frame in motions:
                 raise FileValueError(where, "frame", f"{frame} appears a second time",
                                      "each frame at most once")
@@ -325,14 +328,21 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                 values = tuple(number(name) for name in ESTIMATE_COLUMNS[1:])
                 for name, value in zip(ESTIMATE_COLUMNS[1:], values):
                     if not abs(value) <= MAX_ESTIMATE:  # NaN too
+                        # As written: rounded, 1000000.1 would read as the bound itself.
                         raise FileValueError(
-                            where, name, "is not finite" if not math.isfinite(value)
-                            else f"is {value:g}", f"a finite number within +-{MAX_ESTIMATE:g} "
-                            "when the status is ok (for no estimate, a failure status)")
+                            where, name, f"is {_shortened(cells[name].strip())}",
+                            f"a finite number within +-{MAX_ESTIMATE:g} when the status is ok "
+                            "(for no estimate, a failure status)")
                 motions[frame] = Motion(*values)
             else:
                 motions[frame] = Motion.failed(status_text(status))
     return motions
+
+
+#: The longest name of an estimates file, bytes in UTF-8: the run folder's plot of it,
+#: estimates_NAME.png, is named after it (sim.harness.report.estimates_plot_names), and file
+#: names end at 255 bytes.
+MAX_ESTIMATES_NAME = 100
 
 
 def parse_estimates_argument(text: str) -> tuple[str, str]:
@@ -340,12 +350,31 @@ def parse_estimates_argument(text: str) -> tuple[str, str]:
     path holds "=" (``run=3/est.csv``) is taken whole when the part after the first "=" is no
     file and the whole is one."""
     name, separator, path = text.partition("=")
-    if not separator or (not Path(path.strip()).is_file() and Path(text).is_file()):
+    if not separator or (not _is_file(path.strip()) and _is_file(text)):
         name, path = Path(text).stem, text
     name, path = name.strip(), path.strip()
     if not name or not path:
         raise ValueError(f"--estimates {text!r}: accepted: FILE.csv or NAME=FILE.csv")
+    size = len(name.encode("utf-8", "replace"))
+    problem = (f"is {size} bytes long" if size > MAX_ESTIMATES_NAME
+               else "holds a character that does not print" if not name.isprintable()
+               else None)
+    if problem:
+        raise ValueError(f"--estimates {_shortened(text)!r}: the name {_shortened(name)!r} "
+                         f"{problem}; accepted: a NAME of printable characters, at most "
+                         f"{MAX_ESTIMATES_NAME} bytes in UTF-8 (it names the method's rows in "
+                         f"the tables and its plot; NAME=FILE.csv names a file other than by "
+                         f"its stem)")
     return name, path
+
+
+def _is_file(path: str) -> bool:
+    """Whether ``path`` is a file; False also for one the system cannot look up (a name
+    longer than it allows)."""
+    try:
+        return Path(path).is_file()
+    except OSError:
+        return False
 
 
 def estimates_by_name(pairs: Sequence[tuple[str, str]] | None) -> dict[str, str]:

@@ -204,6 +204,10 @@ def frame_depth_unit_m(png: str | Path) -> float | None:
     return float(unit)
 
 
+#: What a recording writes into its folder, and replaces there.
+RECORDING_ENTRIES = (DEPTH_DIR, EXACT_DIR, SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT)
+
+
 def check_recording_folder(out_dir: str | Path) -> None:
     """Refuse a folder that holds what a recording replaces (``depth/``, ``exact/``,
     sequence.json, truth.csv, groundtruth.txt) but no sequence of this format: recording there
@@ -211,14 +215,28 @@ def check_recording_folder(out_dir: str | Path) -> None:
     A new or empty folder, a folder of other files (they stay) and a sequence folder (it is
     replaced) are accepted."""
     folder = Path(out_dir)
-    present = [name for name in (DEPTH_DIR, EXACT_DIR, SEQUENCE_JSON, TRUTH_CSV, GROUNDTRUTH_TXT)
-               if (folder / name).exists()]
+    present = [name for name in RECORDING_ENTRIES if (folder / name).exists()]
     if not present or holds_sequence(folder):
         return
     raise FileValueError(str(folder), "folder", f"holds {', '.join(present)} but no sequence "
                          f"of format {FORMAT_NAME} (a recording would replace them)",
                          "a new or empty folder, one of other files, or a sequence folder to "
                          "replace")
+
+
+def remove_recording(out_dir: str | Path) -> None:
+    """Remove what a recording writes (:data:`RECORDING_ENTRIES`) from ``out_dir``, readable or
+    not; other files stay. Only for a folder whose owner knows it holds nothing else of those
+    names (a suite's own recording, damaged beyond what :func:`check_recording_folder` lets a
+    new recording replace)."""
+    import shutil
+
+    for name in RECORDING_ENTRIES:
+        path = Path(out_dir) / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
 
 
 class SequenceWriter:

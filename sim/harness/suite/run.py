@@ -52,10 +52,12 @@ def record_then_score(config: RunConfig) -> dict:
 
     A recording that was interrupted is not scored: the stop is raised again
     (``KeyboardInterrupt``), and running the suite again records it anew. A recording found
-    damaged when scored (a frame's file unreadable) is recorded again, once.
+    damaged when scored (a frame's file unreadable) is recorded again, once; so is one whose
+    sequence.json is lost or unreadable (what the recording left there is removed first).
     """
     from sim.harness.runner import RecordConfig, record
     from sim.harness.score import ScoreConfig, score
+    from sim.harness.sequence import holds_sequence, remove_recording
     from sim.harness.validation import FileValueError
 
     sequence = Path(config.out_dir) / SEQUENCE_FOLDER
@@ -63,6 +65,8 @@ def record_then_score(config: RunConfig) -> dict:
     checked = isinstance(config, SuiteJob) and config.check_estimates
 
     def record_it() -> None:
+        if not holds_sequence(sequence):  # its own folder: what a recording there left goes
+            remove_recording(sequence)
         header = record(RecordConfig(config.scenario, str(sequence),
                                      max_frames=config.max_frames, seed=config.seed,
                                      overrides=config.overrides))

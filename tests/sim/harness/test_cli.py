@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -189,7 +190,8 @@ def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
     a_file = tmp_path / "a_file"
     a_file.write_text("")
     for out, problem in ((a_file, "is not a folder"), (a_file / "below", "cannot write there"),
-                         ("/proc/egostab-test", "cannot write there")):
+                         ("/proc/egostab-test", "cannot write there"),
+                         (tmp_path / ("x" * 300), "cannot be looked up")):
         assert main([*command, "--out", str(out)]) == 2
         assert problem in _one_line_error(capsys, command[0])
 
@@ -300,6 +302,28 @@ def test_a_ray_address_without_ray_is_refused_before_any_work(command, tmp_path,
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("command", [["sweep", str(SCENARIOS_DIR / "sweeps" / "noise_sweep.toml")],
+                                     ["suite", str(SCENARIOS_DIR / "suites" / "ci_suite.toml")]])
+@pytest.mark.parametrize("address, problem", [("127.0.0.1:1", "nothing answers at 127.0.0.1:1"),
+                                              ("ray://127.0.0.1:1", "nothing answers at"),
+                                              ("", "is not an address"),
+                                              ("not an address", "is not an address"),
+                                              ("host:99999", "is not an address")])
+def test_a_ray_address_nothing_answers_at_is_refused_before_any_work(command, address, problem,
+                                                                     tmp_path, capsys,
+                                                                     monkeypatch):
+    # Ray, given 127.0.0.1:1, logged its retries and waited for minutes.
+    import sim.harness.runset as runset
+
+    monkeypatch.setattr(runset, "run_on_command_line",
+                        lambda *args, **kwargs: pytest.fail("the runs started"))
+    assert main([*command, "--ray", "--ray-address", address,
+                 "--out", str(tmp_path / "out")]) == 2
+    message = _one_line_error(capsys, command[0])
+    assert problem in message and "accepted: 'auto' or 'local', or the HOST:PORT" in message
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):
     from sim.harness.ideal import MAX_IMAGE_PIXELS, load_image
 
@@ -372,6 +396,20 @@ def test_aggregate_refuses_a_folder_as_its_table_and_leaves_no_folder_when_refus
     for folder in ("a_folder", "."):
         assert main(["aggregate", str(run), "--out", folder]) == 2
         assert "is a folder" in _one_line_error(capsys, "aggregate")
+
+
+def test_aggregate_refuses_to_write_its_table_over_a_file_of_a_run_it_reads(tmp_path, capsys):
+    # --out run/metrics.json replaced the run's metrics with the table, and the run could no
+    # longer be read.
+    run = tmp_path / "run"
+    shutil.copytree(Path(__file__).parents[3] / "results" / "corridor_straight", run)
+    before = {path.name: path.read_bytes() for path in run.iterdir()}
+    for name in ("metrics.json", "summary.md", "estimates_ecc.png"):
+        for given in (run, run / "metrics.json"):
+            assert main(["aggregate", str(given), "--out", str(run / name)]) == 2
+            assert "is a file of the run" in _one_line_error(capsys, "aggregate")
+    assert {path.name: path.read_bytes() for path in run.iterdir()} == before
+    assert main(["aggregate", str(run), "--out", str(run / "table.md")]) == 0
 
 
 def test_a_tilde_the_shell_left_in_an_output_path_is_the_home_folder(tmp_path, monkeypatch):

@@ -3,6 +3,8 @@
 import csv
 import json
 import math
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -302,6 +304,28 @@ def test_bad_status_is_rejected(run, tmp_path):
 def test_provenance_without_git_is_none(tmp_path):
     assert git_state(tmp_path) == {"commit": None, "dirty": None}
     assert package_versions()["numpy"] == np.__version__
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="needs git")
+def test_provenance_is_dirty_when_code_changed_not_when_results_did(tmp_path):
+    def git(*args):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path,
+                       check=True, capture_output=True)
+
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "metrics.json").write_text("{}")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("init", "-q")
+    git("add", ".")
+    git("commit", "-q", "-m", "code and results")
+    (tmp_path / "results" / "metrics.json").write_text('{"rerun": true}')
+    git_state.cache_clear()
+    state = git_state(tmp_path)
+    assert len(state["commit"]) == 40 and state["dirty"] is False
+    (tmp_path / "code.py").write_text("x = 2\n")
+    git_state.cache_clear()
+    assert git_state(tmp_path)["dirty"] is True
+    git_state.cache_clear()
 
 
 def test_a_run_that_scored_nothing_still_writes_every_file(tmp_path):

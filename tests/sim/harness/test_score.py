@@ -480,6 +480,44 @@ def test_an_estimates_path_holding_an_equals_sign_is_scored_and_a_missing_one_na
     assert not (tmp_path / "none").exists()
 
 
+@pytest.mark.parametrize("name, problem", [("a\nb", "holds a character that does not print"),
+                                           ("a\tb", "holds a character that does not print"),
+                                           ("y" * 101, "is 101 bytes long"),
+                                           ("é" * 51, "is 102 bytes long")])
+def test_an_estimates_name_that_cannot_name_files_and_rows_is_refused_before_any_work(
+        folders, tmp_path, capsys, name, problem):
+    # A newline in the name broke frames.csv's rows; a name too long for a file name failed
+    # the run at its last write, the scoring done.
+    path = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv")
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["score", str(folders / "sequence"), "--estimates", f"{name}={path}", "--out",
+              str(out), "--quiet", "--no-record"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    shown = name if len(name) <= 40 else name[:40] + "..."
+    assert f"the name {shown!r} {problem}; accepted: a NAME of printable characters" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_an_estimates_name_of_the_longest_accepted_length_names_its_plot(folders, tmp_path):
+    path = _estimates_from_truth(folders / "sequence", tmp_path / "plain.csv")
+    name = "y" * 100
+    assert main(["score", str(folders / "sequence"), "--estimates", f"{name}={path}",
+                 "--out", str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
+    assert (tmp_path / "out" / f"estimates_{name}.png").stat().st_size
+
+
+def test_a_frame_number_of_thousands_of_digits_is_refused_as_no_frame(folders, tmp_path, capsys):
+    path = tmp_path / "long.csv"
+    path.write_text("frame,angle_deg,dx,dy\n" + "1" * 5000 + ",0,0,0\n")
+    assert main(["score", str(folders / "sequence"), "--estimates", f"long={path}", "--out",
+                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"egostab score: error: {path}:2: frame: {'1' * 40}... is not a frame of the sequence; "
+        f"allowed: an integer from 0 to {N_FRAMES - 1}")
+
+
 PLUGINS = "tests.sim.harness.plugin_methods"
 
 
@@ -541,7 +579,8 @@ def test_estimates_far_out_are_scored_and_plotted_up_to_the_bound_and_refused_be
         folders, tmp_path, capsys):
     # Drawn, huge estimates once broke the plots' axis ticks; 1e308, a "no value" of C
     # programs, turned every mean and variance into n/a or a 300-digit number.
-    for value, status in ((1e6, 0), (-1e6, 0), (1.7e308, 2), (1000001, 2)):
+    # A value beyond the bound is shown as written: 1000000.1, rounded, read as the bound.
+    for value, status in ((1e6, 0), (-1e6, 0), (1.7e308, 2), (1000001, 2), (1000000.1, 2)):
         path = tmp_path / "far.csv"
         path.write_text("frame,angle_deg,dx,dy\n" + "".join(
             f"{frame},0,{value if frame == 3 else 0.0},0\n" for frame in range(N_FRAMES)))
@@ -550,7 +589,7 @@ def test_estimates_far_out_are_scored_and_plotted_up_to_the_bound_and_refused_be
                      str(out), "--quiet", "--no-record"]) == status
         err = capsys.readouterr().err.strip()
         if status:
-            assert err == (f"egostab score: error: {path}:5: dx: is {value:g}; allowed: a finite "
+            assert err == (f"egostab score: error: {path}:5: dx: is {value}; allowed: a finite "
                            "number within +-1e+06 when the status is ok (for no estimate, a "
                            "failure status)")
             assert not out.exists()

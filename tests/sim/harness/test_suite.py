@@ -579,12 +579,24 @@ def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
     # Another max_frames, or damaged frames, are recorded again; an interrupted recording is
     # not scored, and the stop goes on.
     longer = RunConfig(**{**config.__dict__, "max_frames": 14})
-    record_then_score(longer)
+    run_errors_14 = record_then_score(longer)["summary"]["run"]["ecc"]["errors"]
     assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 14
     (tmp_path / "job" / SEQUENCE_FOLDER / "depth" / "000005.png").write_bytes(b"damaged")
     assert record_then_score(longer)["summary"]["run"]["ecc"]["errors"] == \
         record_then_score(longer)["summary"]["run"]["ecc"]["errors"]
     assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).frame(5).depth_m.size
+    # A sequence.json lost or unreadable, too: the recording's remains were refused as a
+    # folder of someone else's files, on every run of the suite again.
+    header = tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json"
+    (tmp_path / "job" / SEQUENCE_FOLDER / "notes.txt").write_text("mine")
+    for damage in ("", "{", "{}", "[1]", None):
+        if damage is None:
+            header.unlink()
+        else:
+            header.write_text(damage)
+        assert record_then_score(longer)["summary"]["run"]["ecc"]["errors"] == run_errors_14
+        assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 14
+    assert (tmp_path / "job" / SEQUENCE_FOLDER / "notes.txt").read_text() == "mine"
 
 
 def test_an_interrupted_recording_is_not_scored_and_is_recorded_again(tmp_path, monkeypatch):
