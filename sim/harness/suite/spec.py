@@ -149,7 +149,12 @@ def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
     for index, entry in enumerate(entries):
         for sequence in _entry_sequences(entry, f"sequences[{index}]", overrides,
                                          Path(base_dir), source):
-            if any(sequence.name == s.name for s in sequences):
+            twin = next((s for s in sequences if s.name == sequence.name), None)
+            if twin is not None and twin.scenario != sequence.scenario:
+                raise SuiteError(source, f"sequences[{index}]", f"templates {twin.scenario} and "
+                                 f"{sequence.scenario} share the name of sequence "
+                                 f"{sequence.name}", "templates with distinct file names")
+            if twin is not None:
                 raise SuiteError(source, f"sequences[{index}]", f"sequence {sequence.name} is "
                                  "listed twice", "each template, gait, scene seed and seed once")
             sequences.append(sequence)

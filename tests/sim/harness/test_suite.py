@@ -127,6 +127,20 @@ def test_invalid_suites_name_the_file_the_key_and_what_is_allowed(changes, key, 
     assert message.count("; allowed: ") == 1 and "; accepted: " not in message, message
 
 
+def test_two_templates_of_one_file_name_are_refused_as_such(tmp_path):
+    # Both gave sequence corridor_straight__default__scene5__seed0, refused as "listed twice".
+    (tmp_path / "mine").mkdir()
+    copy = tmp_path / "mine" / "corridor_straight.toml"
+    copy.write_text((SCENARIOS_DIR / "corridor_straight.toml").read_text())
+    with pytest.raises(SuiteError) as info:
+        small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5]},
+                              {"scenario": str(copy), "scene_seeds": [5]}])
+    assert str(info.value) == (
+        f"tiny.toml: sequences[1]: templates corridor_straight and {copy} share the name of "
+        f"sequence corridor_straight__default__scene5__seed0; allowed: templates with distinct "
+        f"file names")
+
+
 def test_missing_keys_bad_toml_and_absent_files_are_named(tmp_path):
     with pytest.raises(SuiteError, match=r"^<dict>: sequences: missing"):
         suite_from_dict({"methods": ["sift"]})
