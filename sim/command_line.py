@@ -65,8 +65,8 @@ def number_option(above: float, most: float) -> Callable[[str], float]:
 
 
 def path_option(text: str) -> Path:
-    """An argparse ``type`` for an output path: an empty value (an unset shell variable) is
-    refused rather than taken for the working directory, and a leading ``~`` that the shell
+    """An argparse ``type`` for a path to write to or a folder to read: an empty value (an unset
+    shell variable) is refused rather than taken for the working directory, and a leading ``~`` that the shell
     left (quoted, or ``--out=~/x``) is the home folder, as the printed path then says."""
     if not text.strip():
         raise argparse.ArgumentTypeError(f"{text!r}: accepted: a path (an empty one, such as an "

@@ -297,7 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
     scorer = commands.add_parser(
         "score", help="score a sequence folder without simulating: methods and/or estimates "
                       "files; writes the run folder `run` writes")
-    scorer.add_argument("sequence", type=Path, help="sequence folder (`egostab record`)")
+    scorer.add_argument("sequence", type=path_option, help="sequence folder (`egostab record`)")
     scorer.add_argument("--methods", type=method_list, default=None,
                         help="comma-separated methods, or 'all' (default: the scenario's, or "
                              "none when --estimates is given)")
@@ -351,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
     ideal.set_defaults(handler=_cmd_ideal)
 
     aggregate = commands.add_parser("aggregate", help="one table from several run folders")
-    aggregate.add_argument("runs", nargs="+", type=Path, help="run folders with metrics.json")
+    aggregate.add_argument("runs", nargs="+", type=path_option, help="run folders with metrics.json")
     aggregate.add_argument("--out", type=path_option, default=None,
                            help="also write the table here")
     aggregate.add_argument("--compact", action="store_true",

@@ -502,8 +502,10 @@ def load_sequence(path: str | Path) -> LoadedSequence:
     """
     folder = Path(path)
     if not folder.is_dir():
-        raise FileNotFoundError(f"{folder}: no such sequence folder; accepted: a folder "
-                                f"written by `egostab record`")
+        problem = "is a file, not a sequence folder" if folder.exists() else \
+            "no such sequence folder"
+        raise FileNotFoundError(f"{folder}: {problem}; accepted: a folder written by "
+                                f"`egostab record`")
     json_path = folder / SEQUENCE_JSON
     try:
         header = json.loads(json_path.read_text(encoding="utf-8"))

@@ -385,6 +385,25 @@ def test_an_empty_output_path_is_refused_not_taken_for_the_working_directory(tmp
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", [["score"], ["aggregate"]])
+def test_an_empty_folder_to_read_is_refused_not_taken_for_the_working_directory(
+        command, tmp_path, monkeypatch, capsys):
+    # `egostab score ""` read the working directory as the sequence.
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exited:
+        main([*command, "", "--out", str(tmp_path / "out")])
+    assert exited.value.code == 2
+    assert "an empty one" in _one_line_error(capsys, command[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_file_given_as_the_sequence_is_named_as_a_file(tmp_path, capsys):
+    (tmp_path / "afile").write_text("")
+    assert main(["score", str(tmp_path / "afile"), "--out", str(tmp_path / "out")]) == 2
+    assert "afile: is a file, not a sequence folder; accepted: a folder written by" in \
+        _one_line_error(capsys, "score")
+
+
 def test_aggregate_refuses_a_folder_as_its_table_and_leaves_no_folder_when_refused(
         tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
