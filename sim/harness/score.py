@@ -313,13 +313,13 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
             if not (text.isascii() and text.isdigit()):
                 raise FileValueError(where, "frame",
                                      f"{_shortened(text)!r} is not a frame number", frames)
-            # Compared by length first: int() refuses strings of thousands of digits.
             digits = text.lstrip("0") or "0"
-            if len(digits) > len(str(n_frames)) or int(digits) >= n_frames:
+            # Longer than n_frames's digits is beyond it: int() refuses thousands of digits.
+            frame = int(digits) if len(digits) <= len(str(n_frames)) else n_frames
+            if frame >= n_frames:
                 raise FileValueError(where, "frame",
                                      f"{_shortened(digits)} is not a frame of the sequence",
                                      frames)
-            frame = int(digits)
             if frame in motions:
                 raise FileValueError(where, "frame", f"{frame} appears a second time",
                                      "each frame at most once")

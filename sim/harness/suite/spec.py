@@ -150,11 +150,12 @@ def suite_from_dict(raw: Mapping[str, Any], source: str = "<dict>",
         for sequence in _entry_sequences(entry, f"sequences[{index}]", overrides,
                                          Path(base_dir), source):
             twin = next((s for s in sequences if s.name == sequence.name), None)
-            if twin is not None and twin.scenario != sequence.scenario:
-                raise SuiteError(source, f"sequences[{index}]", f"templates {twin.scenario} and "
-                                 f"{sequence.scenario} share the name of sequence "
-                                 f"{sequence.name}", "templates with distinct file names")
             if twin is not None:
+                if twin.scenario != sequence.scenario:
+                    raise SuiteError(source, f"sequences[{index}]", f"templates "
+                                     f"{twin.scenario} and {sequence.scenario} share the name "
+                                     f"of sequence {sequence.name}",
+                                     "templates with distinct file names")
                 raise SuiteError(source, f"sequences[{index}]", f"sequence {sequence.name} is "
                                  "listed twice", "each template, gait, scene seed and seed once")
             sequences.append(sequence)
