@@ -34,7 +34,8 @@ from matplotlib.figure import Figure
 from sim.atomic import atomic_path, prepare_output_dir, write_text_atomic
 from sim.harness.provenance import provenance
 from sim.harness.scoring import (AXES, AXIS_UNITS, LARGE_ERROR_DEG, LARGE_ERROR_PX, RECORD_FIELDS,
-                                 FrameRecord, MethodScore, RunSummary)
+                                 FrameRecord, LargeError, MethodScore, RunSummary,
+                                 TruthResidual)
 
 FRAMES_CSV = "frames.csv"
 FAILURES_JSONL = "failures.jsonl"
@@ -133,6 +134,33 @@ def large_errors_cell(n_large: int | None, n_scored: int) -> str:
     return "n/a" if n_large is None else f"{n_large} of {n_scored:,}"
 
 
+#: Most "ok but off" estimates a table lists per method; the rest are counted, and every one is
+#: in frames.csv (a run) or suite.json (a suite).
+MAX_LISTED_LARGE_ERRORS = 20
+
+
+def large_errors_table(rows: Iterable[tuple[str, str, LargeError]], with_source: bool = False,
+                       source_title: str = "Sequence") -> str:
+    """The "ok" estimates off by more than the large-error limits, a row each: the method,
+    (with ``with_source``) where, the frame and the absolute errors; at most
+    ``MAX_LISTED_LARGE_ERRORS`` per method, then a row counting the rest."""
+    by_method: dict[str, list[tuple[str, LargeError]]] = {}
+    for method, source, error in rows:
+        by_method.setdefault(method, []).append((source, error))
+    lines = []
+    for method, entries in by_method.items():
+        for source, error in entries[:MAX_LISTED_LARGE_ERRORS]:
+            lines.append((method, *((source,) if with_source else ()), str(error.frame),
+                          format_number(error.rotation_deg), format_number(error.x_px),
+                          format_number(error.y_px)))
+        if len(entries) > MAX_LISTED_LARGE_ERRORS:
+            rest = len(entries) - MAX_LISTED_LARGE_ERRORS
+            lines.append((method, *(("",) if with_source else ()),
+                          f"and {rest:,} more", "", "", ""))
+    return markdown_table(("Method", *((source_title,) if with_source else ()), "Frame",
+                           "Rotation error (deg)", "X error (px)", "Y error (px)"), lines)
+
+
 def reliability_table(scores: Mapping[str, MethodScore]) -> str:
     """Failure rate, "ok" estimates off by more than the large-error limits, time per frame and
     ITF (compensated vs raw) per method."""
@@ -199,6 +227,8 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         epe_table(summary.run),
         "",
+        truth_residual_line(summary.truth_residual),
+        "",
         "## Failures, time and inter-frame transformation fidelity",
         "",
         "ITF: mean PSNR between consecutive frames of the stabilized stream toward the same "
@@ -207,6 +237,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         reliability_table(summary.run),
         "",
+        *_large_errors_section(summary.run),
         "## Per gait cycle (mean / variance of |error|; EPE mean / mean above floor)",
         "",
         cycle_table(summary),
@@ -217,6 +248,29 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
     ]
     return "\n".join(lines)
+
+
+def truth_residual_line(residual: TruthResidual) -> str:
+    """One sentence on the ground truth's own residual (what per-axis errors cannot go below)."""
+    if residual.n == 0:
+        return "Ground truth's own residual: no frame with a ground truth."
+    return (f"Ground truth's own residual (RMS distance between its rigid fit and its points: "
+            f"parallax and zoom no 2-D rigid motion removes): median "
+            f"{format_number(residual.median_px)} px, largest {format_number(residual.max_px)} "
+            f"px, over {residual.n:,} frames (per frame: `truth_residual_px` in frames.csv).")
+
+
+def _large_errors_section(scores: Mapping[str, MethodScore]) -> list[str]:
+    """summary.md's list of the "ok" estimates off by more than the large-error limits; none
+    when there are none."""
+    rows = [(method, "", error) for method, score in scores.items()
+            for error in score.large_errors]
+    if not rows:
+        return []
+    return [f"### {LARGE_ERRORS_TITLE}: the frames", "",
+            "Estimates the method and the trust check called ok, off the truth by more than "
+            f"{LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px along an axis (absolute errors).", "",
+            large_errors_table(rows), ""]
 
 
 def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:
@@ -514,8 +568,8 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
         axis (``MEAN_ERROR_COLUMNS``, ``ERROR_VARIANCE_COLUMNS``), "epe_mean_px",
         "epe_above_floor_px", "failure_rate", "ms_per_frame", "itf_db", "itf_raw_db",
         "scored_frames", "large_errors" (``MethodScore.n_large_errors``: None when not
-        counted) and "failures" (status -> failed frames); a figure metrics.json has none of is
-        NaN.
+        counted), "large_error_frames" (``MethodScore.large_errors``) and "failures" (status
+        -> failed frames); a figure metrics.json has none of is NaN.
         A run that scored no frame (it fell at once) has no row.
     """
     scores = ((metrics or {}).get("summary") or {}).get("run") or {}
@@ -531,6 +585,7 @@ def score_rows(metrics: Mapping | None) -> list[dict]:
                      "failure_rate": score.failure_rate, "ms_per_frame": score.ms_mean,
                      "itf_db": score.itf_db, "itf_raw_db": score.itf_raw_db,
                      "scored_frames": score.n_scored, "large_errors": score.n_large_errors,
+                     "large_error_frames": score.large_errors,
                      "failures": dict(score.failures)})
     return rows
 

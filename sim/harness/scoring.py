@@ -175,6 +175,21 @@ NO_ERRORS = ErrorStats(math.nan, math.nan, math.nan, 0)
 
 
 @dataclass(frozen=True)
+class LargeError:
+    """An "ok" estimate off by more than the large-error limits (``FrameRecord.large_error``):
+    its frame and its absolute errors in rotation (deg), x and y (px)."""
+
+    frame: int
+    rotation_deg: float
+    x_px: float
+    y_px: float
+
+    @classmethod
+    def of(cls, record: FrameRecord) -> "LargeError":
+        return cls(record.frame_index, record.err_angle_deg, record.err_dx_px, record.err_dy_px)
+
+
+@dataclass(frozen=True)
 class MethodScore:
     """Aggregate scores of one method over a set of frames (a gait cycle or a whole run).
 
@@ -194,6 +209,8 @@ class MethodScore:
         n_large_errors: scored frames whose "ok" estimate is off by more than
             ``LARGE_ERROR_DEG`` or ``LARGE_ERROR_PX`` (``FrameRecord.large_error``); None in
             a metrics.json written before it was counted.
+        large_errors: those estimates (:class:`LargeError`), in frame order; empty in a
+            metrics.json written before they were listed.
     """
 
     method: str
@@ -211,6 +228,7 @@ class MethodScore:
     epe: ErrorStats = NO_ERRORS
     epe_floor_px: float = math.nan
     n_large_errors: int | None = None
+    large_errors: tuple[LargeError, ...] = ()
 
     @property
     def epe_above_floor_px(self) -> float:
@@ -221,8 +239,9 @@ class MethodScore:
     def from_dict(cls, data: Mapping[str, Any]) -> "MethodScore":
         """Inverse of ``dataclasses.asdict`` after a JSON round trip (None -> NaN).
 
-        A metrics.json written before the end-point error was scored loads with NaN EPE, and
-        one written before large errors were counted with ``n_large_errors`` None.
+        A metrics.json written before the end-point error was scored loads with NaN EPE, one
+        written before large errors were counted with ``n_large_errors`` None, and one written
+        before they were listed with no ``large_errors``.
         """
         values = dict(data)
         values["errors"] = {axis: ErrorStats.from_dict(values["errors"][axis]) for axis in AXES}
@@ -230,6 +249,8 @@ class MethodScore:
             values[name] = _float(values[name])
         values["epe"] = ErrorStats.from_dict(values["epe"]) if "epe" in values else NO_ERRORS
         values["epe_floor_px"] = _float(values.get("epe_floor_px"))
+        values["large_errors"] = tuple(LargeError(**entry)
+                                       for entry in values.get("large_errors", ()))
         return cls(**values)
 
     @classmethod
@@ -252,7 +273,43 @@ class MethodScore:
             epe_floor_px=(float(np.mean([record.truth_epe_px for record in with_epe]))
                           if with_epe else math.nan),
             n_large_errors=sum(record.large_error for record in scored),
+            large_errors=tuple(LargeError.of(record) for record in
+                               sorted(scored, key=lambda record: record.frame_index)
+                               if record.large_error),
         )
+
+
+@dataclass(frozen=True)
+class TruthResidual:
+    """The ground truth's own residual over the frames that have one: the median and the
+    maximum of the RMS distance (px) between its rigid fit and its points
+    (``FrameRecord.truth_residual_px``), over ``n`` frames. No 2-D rigid estimate removes it."""
+
+    median_px: float
+    max_px: float
+    n: int
+
+    @classmethod
+    def of(cls, records: Iterable[FrameRecord]) -> "TruthResidual":
+        """Over the distinct frames of ``records`` whose truth succeeded."""
+        by_frame = {record.frame_index: record.truth_residual_px for record in records
+                    if record.truth_status == OK and math.isfinite(record.truth_residual_px)}
+        values = np.asarray(list(by_frame.values()), dtype=np.float64)
+        if values.size == 0:
+            return cls(math.nan, math.nan, 0)
+        return cls(float(np.median(values)), float(values.max()), values.size)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | None) -> "TruthResidual":
+        """Inverse of ``dataclasses.asdict`` after a JSON round trip; no frames for None (a
+        metrics.json written before the residual was summarised)."""
+        if data is None:
+            return NO_TRUTH_RESIDUAL
+        return cls(_float(data["median_px"]), _float(data["max_px"]), int(data["n"]))
+
+
+#: The residual of no frames.
+NO_TRUTH_RESIDUAL = TruthResidual(math.nan, math.nan, 0)
 
 
 @dataclass(frozen=True)
@@ -264,12 +321,14 @@ class RunSummary:
         run: method -> MethodScore over all frames.
         cycles: gait cycle -> method -> MethodScore over that cycle's frames.
         n_frames: number of distinct frames scored.
+        truth_residual: the ground truth's own residual over those frames.
     """
 
     methods: tuple[str, ...]
     run: dict[str, MethodScore]
     cycles: dict[int, dict[str, MethodScore]]
     n_frames: int
+    truth_residual: TruthResidual = NO_TRUTH_RESIDUAL
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "RunSummary":
@@ -278,11 +337,12 @@ class RunSummary:
                    {m: MethodScore.from_dict(s) for m, s in data["run"].items()},
                    {int(cycle): {m: MethodScore.from_dict(s) for m, s in scores.items()}
                     for cycle, scores in data["cycles"].items()},
-                   int(data["n_frames"]))
+                   int(data["n_frames"]), TruthResidual.from_dict(data.get("truth_residual")))
 
     def to_dict(self) -> dict:
         """Plain nested dicts and lists (NaN kept as float NaN), ready for JSON."""
         return {"methods": list(self.methods), "n_frames": self.n_frames,
+                "truth_residual": dataclasses.asdict(self.truth_residual),
                 "run": {m: dataclasses.asdict(s) for m, s in self.run.items()},
                 "cycles": {str(cycle): {m: dataclasses.asdict(s) for m, s in scores.items()}
                            for cycle, scores in self.cycles.items()}}
@@ -307,7 +367,8 @@ def summarize(records: Iterable[FrameRecord], itf: "ItfAccumulator | None" = Non
                       for method, group in groups.items()}
               for cycle, groups in sorted(by_cycle.items())}
     return RunSummary(tuple(by_method), run, cycles,
-                      len({record.frame_index for record in records}))
+                      len({record.frame_index for record in records}),
+                      TruthResidual.of(records))
 
 
 def masked_psnr_db(first: np.ndarray, second: np.ndarray, peak: float = 255.0,

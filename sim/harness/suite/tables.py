@@ -22,6 +22,7 @@ method) and ``suite.json`` (every figure: sequences, rows, intervals, difference
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import itertools
 import json
@@ -33,9 +34,10 @@ from pathlib import Path
 
 from sim.atomic import write_text_atomic
 from sim.harness.report import (LARGE_ERRORS_TITLE, MEAN_ERROR_COLUMNS, format_number,
-                                large_errors_cell, markdown_table, score_rows)
+                                large_errors_cell, large_errors_table, markdown_table,
+                                score_rows)
 from sim.harness.runner import FELL
-from sim.harness.scoring import AXES, AXIS_UNITS
+from sim.harness.scoring import AXES, AXIS_UNITS, LARGE_ERROR_DEG, LARGE_ERROR_PX, LargeError
 from sim.harness.suite.spec import SuiteSpec
 from sim.harness.suite.statistics import (BOOTSTRAP_SEED, CONFIDENCE_LEVEL, N_RESAMPLES,
                                           mean_interval, paired_difference)
@@ -93,6 +95,8 @@ def sequence_rows(outcomes: Sequence[RunOutcome], methods: Sequence[str]) -> lis
                          **{figure: float(score.get(figure, math.nan)) for figure in FIGURES},
                          "scored_frames": score.get("scored_frames", 0),
                          "large_errors": score.get("large_errors", 0),
+                         "large_error_frames": [dataclasses.asdict(error) for error in
+                                                score.get("large_error_frames", ())],
                          "failures": score.get("failures", {})})
     return rows
 
@@ -104,13 +108,18 @@ def method_samples(rows: Sequence[dict], method: str, figure: str) -> list[float
 
 def large_error_totals(rows: Sequence[dict], methods: Sequence[str]) -> dict[str, dict]:
     """Per method: "count", its "ok" estimates off by more than the large-error limits over all
-    sequences (None when a run's metrics.json did not count them), of "scored_frames"."""
+    sequences (None when a run's metrics.json did not count them), of "scored_frames", and
+    "frames", those estimates in sequence order, each {"sequence", "frame", "rotation_deg",
+    "x_px", "y_px"} (absolute errors; those of a metrics.json that did not list them are
+    missing)."""
     totals = {}
     for method in methods:
         mine = [row for row in rows if row["method"] == method]
         counts = [row["large_errors"] for row in mine]
         totals[method] = {"count": None if None in counts else sum(counts),
-                          "scored_frames": sum(row["scored_frames"] for row in mine)}
+                          "scored_frames": sum(row["scored_frames"] for row in mine),
+                          "frames": [{"sequence": row["sequence"], **error} for row in mine
+                                     for error in row["large_error_frames"]]}
     return totals
 
 
@@ -180,6 +189,16 @@ def means_markdown(figures: dict) -> str:
                            for method, by in figures["means"].items()))
 
 
+def large_errors_markdown(figures: dict) -> str:
+    """Every method's "ok" estimates off by more than the large-error limits: sequence, frame
+    and absolute errors (``sim.harness.report.large_errors_table``)."""
+    return large_errors_table(
+        ((method, entry["sequence"], LargeError(entry["frame"], entry["rotation_deg"],
+                                                entry["x_px"], entry["y_px"]))
+         for method, totals in figures["large_errors"].items() for entry in totals["frames"]),
+        with_source=True)
+
+
 def failures_markdown(figures: dict) -> str:
     """Per method: its failed frames over all sequences, and how many of each status, each
     also as a share of all its frames."""
@@ -216,6 +235,18 @@ def differences_markdown(figures: dict) -> str:
           (f"[{_difference(d['figure'], d['low'])}, {_difference(d['figure'], d['high'])}]"
            if d["method"] else "n/a"), str(d["n"]), verdict(d)]
          for d in figures["differences"]))
+
+
+def _large_errors_section(figures: dict) -> list[str]:
+    """suite.md's list of the "ok" estimates off by more than the large-error limits; none
+    when there are none."""
+    if not any(totals["frames"] for totals in figures["large_errors"].values()):
+        return []
+    return [f"### {LARGE_ERRORS_TITLE}: the frames", "",
+            f"Estimates the method and the trust check called ok, off the truth by more than "
+            f"{LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px along an axis (absolute errors); "
+            f"per frame in the sequence's frames.csv (`runs/<sequence>/`).", "",
+            large_errors_markdown(figures), ""]
 
 
 def sequences_markdown(outcomes: Sequence[RunOutcome]) -> str:
@@ -282,7 +313,7 @@ def write_suite_outputs(out_dir: str | os.PathLike, spec: SuiteSpec,
         f"# Suite {spec.name}", "", *([spec.description, ""] if spec.description else []),
         summary, "", *([estimates_line, ""] if estimates else []), intervals, COUNTING, "",
         "## Means over sequences", "",
-        means_markdown(figures), "", "## Failures by status", "",
+        means_markdown(figures), "", *_large_errors_section(figures), "## Failures by status", "",
         "Every failed frame of every sequence, pooled; `unverified`: the method answered, and "
         "the trust check could not confirm its answer (docs/method.md, section 11); any other "
         "status is the method's own.", "", failures_markdown(figures), "",

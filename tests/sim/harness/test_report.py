@@ -11,13 +11,14 @@ import pytest
 
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
-from sim.harness.report import (MEAN_ERROR_COLUMNS, aggregate_runs, failures_jsonl_text,
-                                large_errors_cell, markdown_table, read_metrics, score_rows,
-                                table_one, terminal_summary, write_run_outputs)
+from sim.harness.report import (MAX_LISTED_LARGE_ERRORS, MEAN_ERROR_COLUMNS, aggregate_runs,
+                                failures_jsonl_text, large_errors_cell, large_errors_table,
+                                markdown_table, read_metrics, score_rows, table_one,
+                                terminal_summary, write_run_outputs)
 from dataclasses import replace
 
-from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, RunSummary,
-                                failure_entry, summarize)
+from sim.harness.scoring import (AXES, RECORD_FIELDS, FrameRecord, ItfAccumulator, LargeError,
+                                RunSummary, failure_entry, summarize)
 from stabilizer.motion import Motion
 
 METHODS = ("t2fuzzy", "sift")
@@ -402,6 +403,33 @@ def test_the_summary_counts_ok_estimates_off_by_more_than_the_large_error_limits
     rows = {row["method"]: row for row in score_rows(files.metrics)}
     assert (rows["t2fuzzy"]["large_errors"], rows["t2fuzzy"]["scored_frames"]) == (1, n_scored)
     assert rows["sift"]["large_errors"] == 0
+    # The estimate is listed: its frame and absolute errors.
+    assert [error.frame for error in rows["t2fuzzy"]["large_error_frames"]] == [
+        records[far].frame_index]
+    assert "### Ok but off (> 5° or 10 px): the frames" in text
+    assert f"| t2fuzzy | {records[far].frame_index} | 0.00 | 12.00 | 0.00 |" in text
+
+
+def test_a_summary_without_such_estimates_lists_none_and_a_long_list_is_cut(tmp_path):
+    records = _records(n_frames=10)
+    text = write_run_outputs(tmp_path, scenario={}, records=records, summary=summarize(records),
+                             meta={}, status="complete", plots=False).summary_md.read_text()
+    assert ": the frames" not in text
+    errors = [LargeError(frame, 6.0, 0.0, 0.0) for frame in range(MAX_LISTED_LARGE_ERRORS + 3)]
+    table = large_errors_table(("m", "", error) for error in errors)
+    assert table.count("| m |") == MAX_LISTED_LARGE_ERRORS + 1
+    assert f"| m | {MAX_LISTED_LARGE_ERRORS - 1} | 6.00 |" in table
+    assert "| m | and 3 more |" in table
+
+
+def test_the_summary_states_the_truths_own_residual(run):
+    _, files, _, summary = run
+    text = files.summary_md.read_text()
+    # _records: residual 0.4 px on every frame with a truth (frame 7 has none).
+    assert summary.truth_residual.n == 39
+    assert ("Ground truth's own residual (RMS distance between its rigid fit and its points: "
+            "parallax and zoom no 2-D rigid motion removes): median 0.40 px, largest 0.40 px, "
+            "over 39 frames") in text
 
 
 def test_a_run_from_before_large_errors_were_counted_reads_n_a():

@@ -10,7 +10,8 @@ import pytest
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.scoring import (AXES, LARGE_ERROR_DEG, LARGE_ERROR_PX, RAW_STREAM,
                                  RECORD_FIELDS, ErrorStats, FrameRecord, ItfAccumulator,
-                                 MethodScore, masked_psnr_db, summarize)
+                                 MethodScore, RunSummary, TruthResidual, masked_psnr_db,
+                                 summarize)
 from stabilizer.motion import Motion, apply_motion, compensate
 
 
@@ -250,10 +251,37 @@ def test_ok_estimates_beyond_the_large_error_limits_are_counted_per_method():
     summary = summarize(records)
     assert summary.run["a"].n_large_errors == 3 and summary.run["b"].n_large_errors == 0
     assert summary.to_dict()["run"]["a"]["n_large_errors"] == 3
+    # Each is listed with its frame and absolute errors, in frame order.
+    assert [(e.frame, round(e.rotation_deg, 6), e.x_px, e.y_px)
+            for e in summary.run["a"].large_errors] == [
+        (0, round(LARGE_ERROR_DEG + just, 6), 0.0, 0.0), (2, 0.0, 0.0, LARGE_ERROR_PX + 1.0),
+        (3, 15.0, 0.0, 0.0)]
+    assert summary.run["b"].large_errors == ()
+    restored = RunSummary.from_dict(json.loads(json.dumps(summary.to_dict())))
+    assert restored.run["a"].large_errors == summary.run["a"].large_errors
 
 
 def test_a_score_written_before_large_errors_were_counted_loads_without_a_count():
     data = summarize([_record(0, "a", Motion(9.0, 0.0, 0.0), _truth())]).to_dict()["run"]["a"]
     assert MethodScore.from_dict(json.loads(json.dumps(data))).n_large_errors == 1
-    del data["n_large_errors"]
-    assert MethodScore.from_dict(data).n_large_errors is None
+    del data["n_large_errors"], data["large_errors"]
+    older = MethodScore.from_dict(data)
+    assert older.n_large_errors is None and older.large_errors == ()
+
+
+def test_the_truths_own_residual_is_summarised_over_distinct_frames_with_a_truth():
+    def truth(residual):
+        return GroundTruth(Motion(0.0, 0.0, 0.0), residual, 1000)
+
+    records = [_record(frame, method, Motion(0.0, 0.0, 0.0), truth(residual))
+               for frame, residual in enumerate((0.5, 1.0, 4.0, 2.0)) for method in "ab"]
+    records.append(_record(4, "a", Motion(0.0, 0.0, 0.0), NO_TRUTH))  # no truth: left out
+    summary = summarize(records)
+    # Four frames (each once, not once per method): median 1.5, largest 4.
+    assert summary.truth_residual == TruthResidual(1.5, 4.0, 4)
+    restored = RunSummary.from_dict(json.loads(json.dumps(summary.to_dict())))
+    assert restored.truth_residual == summary.truth_residual
+    data = summary.to_dict()
+    del data["truth_residual"]  # a metrics.json from before
+    assert RunSummary.from_dict(data).truth_residual.n == 0
+    assert summarize([_record(0, "a", Motion(0.0, 0.0, 0.0), NO_TRUTH)]).truth_residual.n == 0

@@ -341,9 +341,18 @@ def test_ok_estimates_off_by_more_than_the_limits_are_counted_over_all_sequences
     # fake_metrics: every frame (4 a run) off by the error given, on every axis.
     result = write_suite_outputs(tmp_path, spec, outcomes_of(
         spec, tmp_path, [{"t2fuzzy": 12.0, "sift": 0.1}, {"t2fuzzy": 0.1, "sift": None}]))
-    assert result.figures["large_errors"] == {"t2fuzzy": {"count": 4, "scored_frames": 8},
-                                              "sift": {"count": 0, "scored_frames": 4}}
+    first = result.rows[0]["sequence"]
+    assert result.figures["large_errors"] == {
+        "t2fuzzy": {"count": 4, "scored_frames": 8,
+                    "frames": [{"sequence": first, "frame": frame, "rotation_deg": 12.0,
+                                "x_px": 12.0, "y_px": 12.0} for frame in range(4)]},
+        "sift": {"count": 0, "scored_frames": 4, "frames": []}}
     assert "Ok but off (> 5° or 10 px), all sequences |" in result.markdown
+    # Each such estimate is listed: where, and how far off.
+    assert "### Ok but off (> 5° or 10 px): the frames" in result.markdown
+    assert f"| t2fuzzy | {first} | 3 | 12.00 | 12.00 | 12.00 |" in result.markdown
+    listed = json.loads((tmp_path / TABLE_JSON).read_text())["large_errors"]["t2fuzzy"]
+    assert [entry["frame"] for entry in listed["frames"]] == [0, 1, 2, 3]
     assert "(n=2) | 4 of 8 |" in result.markdown and "| 0 of 4 |" in result.markdown
     rows = list(csv.DictReader(io.StringIO((tmp_path / TABLE_CSV).read_text())))
     assert [(row["method"], row["scored_frames"], row["large_errors"]) for row in rows] == [
@@ -372,9 +381,11 @@ def test_runs_from_before_large_errors_were_counted_give_no_total(tmp_path):
     spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
     outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 12.0, "sift": 0.1}] * 2)
     for method in outcomes[0].metrics["summary"]["run"].values():
-        del method["n_large_errors"]
+        del method["n_large_errors"], method["large_errors"]
     result = write_suite_outputs(tmp_path, spec, outcomes)
-    assert result.figures["large_errors"]["t2fuzzy"] == {"count": None, "scored_frames": 8}
+    totals = result.figures["large_errors"]["t2fuzzy"]
+    assert (totals["count"], totals["scored_frames"]) == (None, 8)
+    assert {entry["sequence"] for entry in totals["frames"]} == {result.rows[-1]["sequence"]}
     assert "(n=2) | n/a |" in result.markdown
 
 
