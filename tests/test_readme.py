@@ -87,3 +87,21 @@ def test_the_command_table_names_every_command_and_each_of_its_options(readme, c
     for command in commands:
         usage = help_text(command).split("\n\n", 1)[0]  # the usage lines: the options only
         assert rows[command] == set(re.findall(r"--[a-z][a-z-]*", usage)) - {"--help"}, command
+
+
+def test_the_truth_residual_figures_are_those_of_the_committed_runs(readme):
+    """README, the shipped walks: the range of the ground truth's median residual over the
+    walks, the one walk below it, and the largest single frame (each run's summary)."""
+    import json
+
+    residuals = {path.stem: json.loads((RESULTS / path.stem / "metrics.json").read_text(
+        encoding="utf-8"))["summary"]["truth_residual"] for path in list_scenarios()}
+    match = re.search(r"medians of ([\d.]+)-([\d.]+) px RMS on the shipped walks \(([\d.]+) px "
+                      r"on `(\w+)`[^)]*\), single frames up to ([\d.]+) px",
+                      " ".join(readme.split()))
+    assert match, "the README's sentence on the truth's residual was not found"
+    low, high, still, still_walk, largest = match.groups()
+    medians = {name: round(figures["median_px"], 1) for name, figures in residuals.items()}
+    assert medians.pop(still_walk) == float(still)
+    assert (min(medians.values()), max(medians.values())) == (float(low), float(high))
+    assert round(max(figures["max_px"] for figures in residuals.values()), 1) == float(largest)
