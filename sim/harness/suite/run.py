@@ -125,6 +125,11 @@ class SuiteRun:
         """The names a finished run must have scored: the methods, then the estimates."""
         return (*self.config.methods, *self.config.estimates)
 
+    @property
+    def folders(self) -> tuple[Path, ...]:
+        """The folders the run writes in: its run folder and its sequence's."""
+        return (Path(self.config.out_dir), Path(self.config.out_dir) / SEQUENCE_FOLDER)
+
     def made_by_this_plan(self, metrics: dict) -> bool:
         """Whether a finished run's metrics come from this run's configuration: its sequence
         recorded as planned now (:func:`_recorded_as_planned`) and its estimates files read

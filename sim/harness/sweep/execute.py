@@ -72,8 +72,9 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
     anew yet (read back from their metrics.json; see :func:`_table_outcomes`).
 
     Args:
-        plan: the planned runs (anything with ``.name``, ``.config`` and ``.scored``, the
-            methods a finished run must have scored; see ``plan_sweep``).
+        plan: the planned runs (anything with ``.name``, ``.config``, ``.scored``, the
+            methods a finished run must have scored, and ``.folders``, the folders it writes
+            in; see ``plan_sweep``).
         write_outputs: writes the tables from the outcomes and returns the result.
         backend: ``"local"`` (a process pool on this machine, spawn start method) or ``"ray"``.
         workers: runs at a time; default: one per usable core locally, the cluster's free CPUs
@@ -93,6 +94,7 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
                          f"the cluster); got {workers!r}")
     if backend == "ray":
         _import_ray()  # fail before anything is written if the extra is missing
+    check_run_folders(plan)
     started = time.time()
     done, pending = split_done(plan)
     outcomes = {outcome.run.name: outcome for outcome in done}
@@ -104,6 +106,17 @@ def execute_plan(plan: Sequence[SweepRun], write_outputs: Callable[[tuple[RunOut
     finally:  # also on Ctrl-C: the tables show every finished run
         result = write_outputs(_table_outcomes(plan, outcomes, started))
     return result
+
+
+def check_run_folders(plan: Sequence[SweepRun]) -> None:
+    """A ValueError of one line when a file stands where a planned run keeps a folder (the
+    folder of the runs, a run's folder, or one a run writes in): each of those runs would
+    fail at its first write."""
+    for planned in plan:
+        for folder in (Path(planned.config.out_dir).parent, *planned.folders):
+            if folder.exists() and not folder.is_dir():
+                raise ValueError(f"{folder}: is a file where run {planned.name} keeps a folder; "
+                                 f"accepted: a folder there, or nothing (move the file away)")
 
 
 def _table_outcomes(plan: Sequence[SweepRun], outcomes: dict[str, RunOutcome],

@@ -37,6 +37,11 @@ class SweepRun:
         """The methods a finished run must have scored (None: the scenario's)."""
         return self.config.methods
 
+    @property
+    def folders(self) -> tuple[Path, ...]:
+        """The folders the run writes in: its run folder."""
+        return (Path(self.config.out_dir),)
+
     def made_by_this_plan(self, metrics: dict) -> bool:
         """Whether a finished run's metrics come from this run's configuration: the scenario
         as resolved now (with its seed and overrides) and ``max_frames``. A sweep file changed

@@ -436,6 +436,20 @@ def test_a_rescore_interrupted_at_once_keeps_the_earlier_runs_in_the_tables(tmp_
         tmp_path / TABLE_MD).read_text()
 
 
+def test_a_file_where_a_sequence_folder_goes_is_refused_before_any_run(tmp_path):
+    def never_run(config):
+        raise AssertionError("a run started")
+
+    planned = plan_suite(small_spec(), tmp_path)[2]
+    Path(planned.config.out_dir).mkdir(parents=True)
+    (Path(planned.config.out_dir) / "sequence").write_text("a hand-made file")
+    with pytest.raises(ValueError, match=f"{planned.name}/sequence: is a file where run "
+                                         f"{planned.name} keeps a folder; accepted: a folder "
+                                         f"there, or nothing"):
+        run_suite(small_spec(), tmp_path, workers=1, run_fn=never_run)
+    assert not (tmp_path / TABLE_MD).exists()
+
+
 def test_bad_backend_and_workers_are_refused(tmp_path):
     with pytest.raises(ValueError, match="unknown backend .dask.; accepted: local, ray"):
         run_suite(small_spec(), tmp_path, backend="dask")

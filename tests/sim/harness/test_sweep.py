@@ -248,6 +248,24 @@ def test_local_runs_at_a_time_default_to_the_usable_cores_and_never_exceed_the_r
     assert pools == [expected]
 
 
+def test_a_file_where_the_runs_folder_goes_is_refused_before_any_run(tmp_path):
+    (tmp_path / "runs").write_text("not a folder")
+    with pytest.raises(ValueError, match=r"runs: is a file where run \S+ keeps a folder; "
+                                         r"accepted: a folder there, or nothing"):
+        run_sweep(small_spec(), tmp_path, workers=1, run_fn=_never_run)
+    run = plan_sweep(small_spec(), tmp_path)[1]
+    (tmp_path / "runs").unlink()
+    Path(run.config.out_dir).parent.mkdir()
+    Path(run.config.out_dir).write_text("not a folder")
+    with pytest.raises(ValueError, match=f"{run.name}: is a file where run {run.name} keeps"):
+        run_sweep(small_spec(), tmp_path, workers=1, run_fn=_never_run)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["runs"]  # no table written
+
+
+def _never_run(config: RunConfig) -> dict:
+    raise AssertionError("a run started")
+
+
 def test_missing_ray_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(__import__("sys").modules, "ray", None)  # import ray -> ImportError
     with pytest.raises(ImportError, match=r'pip install -e "\.\[cluster\]"'):
