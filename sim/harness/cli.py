@@ -229,7 +229,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def _cmd_gate(args: argparse.Namespace) -> int:
     from sim.atomic import check_output_path, prepare_output_dir
     from sim.harness.gate import run_gate
+    from sim.harness.runner import check_folder_of_its_own
 
+    check_folder_of_its_own(args.out, "gate")
     if args.update_baseline:
         if args.baseline.is_dir():
             raise ValueError(f"--baseline {args.baseline}: is a folder; accepted: the path of "
@@ -242,12 +244,15 @@ def _cmd_gate(args: argparse.Namespace) -> int:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from sim.atomic import prepare_output_dir
+    from sim.harness.runner import check_folder_of_its_own
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.sweep import default_sweep_dir, load_sweep, run_sweep
 
     backend = command_line_backend(args.ray, args.ray_address, args.workers)
     spec = load_sweep(args.sweep_file)
-    out_dir = prepare_output_dir(args.out or default_sweep_dir(spec, DEFAULT_RESULTS))
+    out_dir = args.out or default_sweep_dir(spec, DEFAULT_RESULTS)
+    check_folder_of_its_own(out_dir, "sweep")
+    out_dir = prepare_output_dir(out_dir)
     return run_on_command_line("sweep", run_sweep, spec, out_dir, backend, args.workers,
                                args.ray_address)
 

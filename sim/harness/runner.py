@@ -84,24 +84,33 @@ class RunConfig:
         check_not_a_sequence(self.out_dir)
 
 
-def check_not_a_sequence(out_dir: str | os.PathLike) -> None:
-    """Refuse a run folder that holds a recorded sequence: the run's files would mix with the
-    sequence's (``score`` refuses any folder inside the sequence it scores)."""
+def check_not_a_sequence(out_dir: str | os.PathLike, kind: str = "run") -> None:
+    """Refuse an output folder (of a ``kind``: run, sweep, suite, gate) that holds a recorded
+    sequence: its files would mix with the sequence's (``score`` refuses any folder inside the
+    sequence it scores)."""
     from sim.harness.sequence import holds_sequence
 
     if holds_sequence(out_dir):
         raise ValueError(f"--out {out_dir}: holds a recorded sequence; accepted: a folder of "
-                         "its own for the run")
+                         f"its own for the {kind}")
 
 
-def check_not_a_run(out_dir: str | os.PathLike) -> None:
-    """Refuse a sequence folder that holds a run's metrics.json: the sequence's files would mix
-    with the run's, as :func:`check_not_a_sequence` refuses the other way round."""
+def check_not_a_run(out_dir: str | os.PathLike, kind: str = "sequence") -> None:
+    """Refuse an output folder (of a ``kind``: sequence, sweep, suite, gate) that holds a run's
+    metrics.json: its files would mix with the run's, as :func:`check_not_a_sequence` refuses
+    the other way round."""
     from sim.harness.report import METRICS_JSON
 
     if (Path(out_dir) / METRICS_JSON).is_file():
         raise ValueError(f"--out {out_dir}: holds a run (its {METRICS_JSON}); accepted: a folder "
-                         "of its own for the sequence")
+                         f"of its own for the {kind}")
+
+
+def check_folder_of_its_own(out_dir: str | os.PathLike, kind: str) -> None:
+    """Refuse the output folder of a ``kind`` of job that writes runs in sub-folders (sweep,
+    suite, gate) when it holds a recorded sequence or a run."""
+    check_not_a_sequence(out_dir, kind)
+    check_not_a_run(out_dir, kind)
 
 
 def scenario_name(scenario: str | os.PathLike) -> str:

@@ -59,6 +59,7 @@ def _estimates(text: str) -> tuple[str, str]:
 def run_suite_command(args: argparse.Namespace) -> int:
     """Run the suite; print its tables. Exit status 1 if a run failed, 2 without Ray's extra."""
     from sim.atomic import prepare_output_dir
+    from sim.harness.runner import check_folder_of_its_own
     from sim.harness.runset import command_line_backend, run_on_command_line
     from sim.harness.score import estimates_by_name
     from sim.harness.suite.run import check_estimates_files, default_suite_dir, run_suite
@@ -68,7 +69,9 @@ def run_suite_command(args: argparse.Namespace) -> int:
     spec = load_suite(args.suite_file)
     estimates = estimates_by_name(args.estimates)
     check_estimates_files(spec, estimates, args.check_estimates)  # before any folder
-    out_dir = prepare_output_dir(args.out or default_suite_dir(spec, args.results))
+    out_dir = args.out or default_suite_dir(spec, args.results)
+    check_folder_of_its_own(out_dir, "suite")
+    out_dir = prepare_output_dir(out_dir)
     return run_on_command_line("suite", functools.partial(run_suite, estimates=estimates,
                                                           check_estimates=args.check_estimates),
                                spec, out_dir, backend, args.workers, args.ray_address)

@@ -323,11 +323,21 @@ def test_the_default_scenario_records_within_60_mb(tmp_path):
     assert size / 30 * n_frames <= 60e6
 
 
-@pytest.mark.parametrize("command", [
-    ["run", CI_CORRIDOR, "--max-frames", "2", "--no-record", "--methods", "ecc", "--quiet"],
-    ["ideal", "corridor", "--frames", "2", "--methods", "ecc"],
+#: Commands whose runs go into sub-folders of --out, and what the refusal calls that folder.
+JOBS_OF_RUNS = [
+    (["sweep", str(SCENARIOS_DIR / "sweeps" / "noise_sweep.toml")], "sweep"),
+    (["suite", str(SCENARIOS_DIR / "suites" / "ci_suite.toml")], "suite"),
+    (["gate"], "gate"),
+]
+
+
+@pytest.mark.parametrize("command, kind", [
+    (["run", CI_CORRIDOR, "--max-frames", "2", "--no-record", "--methods", "ecc", "--quiet"],
+     "run"),
+    (["ideal", "corridor", "--frames", "2", "--methods", "ecc"], "run"),
+    *JOBS_OF_RUNS,
 ])
-def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys, command):
+def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys, command, kind):
     from sim.harness.cli import main
 
     folder = tmp_path / "seq"
@@ -335,8 +345,23 @@ def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys,
     before = sorted(path.name for path in folder.iterdir())
     assert main([*command, "--out", str(folder)]) == 2
     err = capsys.readouterr().err.strip()
-    assert "holds a recorded sequence" in err and "\n" not in err
+    assert ("holds a recorded sequence; accepted: a folder of its own for the " + kind in err
+            and "\n" not in err)
     assert sorted(path.name for path in folder.iterdir()) == before
+
+
+@pytest.mark.parametrize("command, kind", JOBS_OF_RUNS)
+def test_a_job_of_runs_into_a_run_folder_is_refused(tmp_path, capsys, command, kind):
+    from sim.harness.cli import main
+
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "metrics.json").write_text("{}")
+    assert main([*command, "--out", str(folder)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert ("holds a run (its metrics.json); accepted: a folder of its own for the " + kind
+            in err and "\n" not in err)
+    assert [path.name for path in folder.iterdir()] == ["metrics.json"]
 
 
 def test_a_recording_into_a_run_folder_is_refused(tmp_path, capsys):
