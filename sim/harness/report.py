@@ -139,26 +139,35 @@ def large_errors_cell(n_large: int | None, n_scored: int) -> str:
 MAX_LISTED_LARGE_ERRORS = 20
 
 
-def large_errors_table(rows: Iterable[tuple[str, str, LargeError]], with_source: bool = False,
-                       source_title: str = "Sequence") -> str:
-    """The "ok" estimates off by more than the large-error limits, a row each: the method,
-    (with ``with_source``) where, the frame and the absolute errors; at most
-    ``MAX_LISTED_LARGE_ERRORS`` per method, then a row counting the rest."""
-    by_method: dict[str, list[tuple[str, LargeError]]] = {}
+def large_errors_section(rows: Sequence[tuple[str, str | None, LargeError]],
+                         where: str = "") -> list[str]:
+    """The lines of a Markdown section listing the "ok" estimates off by more than the
+    large-error limits, a row each: the method, where (the second item of each row; a column
+    only when some row has one), the frame and the absolute errors; at most
+    ``MAX_LISTED_LARGE_ERRORS`` per method, then a row counting the rest. ``where`` ends the
+    section's sentence. No lines without rows."""
+    if not rows:
+        return []
+    with_source = any(source is not None for _, source, _ in rows)
+    by_method: dict[str, list[tuple[str | None, LargeError]]] = {}
     for method, source, error in rows:
         by_method.setdefault(method, []).append((source, error))
     lines = []
     for method, entries in by_method.items():
         for source, error in entries[:MAX_LISTED_LARGE_ERRORS]:
-            lines.append((method, *((source,) if with_source else ()), str(error.frame),
+            lines.append((method, *((source or "",) if with_source else ()), str(error.frame),
                           format_number(error.rotation_deg), format_number(error.x_px),
                           format_number(error.y_px)))
         if len(entries) > MAX_LISTED_LARGE_ERRORS:
             rest = len(entries) - MAX_LISTED_LARGE_ERRORS
             lines.append((method, *(("",) if with_source else ()),
                           f"and {rest:,} more", "", "", ""))
-    return markdown_table(("Method", *((source_title,) if with_source else ()), "Frame",
-                           "Rotation error (deg)", "X error (px)", "Y error (px)"), lines)
+    table = markdown_table(("Method", *(("Sequence",) if with_source else ()), "Frame",
+                            "Rotation error (deg)", "X error (px)", "Y error (px)"), lines)
+    return [f"### {LARGE_ERRORS_TITLE}: the frames", "",
+            f"Estimates the method and the trust check called ok, off the truth by more than "
+            f"{LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px along an axis (absolute errors)"
+            f"{where}.", "", table, ""]
 
 
 def reliability_table(scores: Mapping[str, MethodScore]) -> str:
@@ -237,7 +246,8 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         "",
         reliability_table(summary.run),
         "",
-        *_large_errors_section(summary.run),
+        *large_errors_section([(method, None, error) for method, score in summary.run.items()
+                               for error in score.large_errors]),
         "## Per gait cycle (mean / variance of |error|; EPE mean / mean above floor)",
         "",
         cycle_table(summary),
@@ -258,19 +268,6 @@ def truth_residual_line(residual: TruthResidual) -> str:
             f"parallax and zoom no 2-D rigid motion removes): median "
             f"{format_number(residual.median_px)} px, largest {format_number(residual.max_px)} "
             f"px, over {residual.n:,} frames (per frame: `truth_residual_px` in frames.csv).")
-
-
-def _large_errors_section(scores: Mapping[str, MethodScore]) -> list[str]:
-    """summary.md's list of the "ok" estimates off by more than the large-error limits; none
-    when there are none."""
-    rows = [(method, "", error) for method, score in scores.items()
-            for error in score.large_errors]
-    if not rows:
-        return []
-    return [f"### {LARGE_ERRORS_TITLE}: the frames", "",
-            "Estimates the method and the trust check called ok, off the truth by more than "
-            f"{LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px along an axis (absolute errors).", "",
-            large_errors_table(rows), ""]
 
 
 def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:

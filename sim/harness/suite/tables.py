@@ -34,10 +34,10 @@ from pathlib import Path
 
 from sim.atomic import write_text_atomic
 from sim.harness.report import (LARGE_ERRORS_TITLE, MEAN_ERROR_COLUMNS, format_number,
-                                large_errors_cell, large_errors_table, markdown_table,
+                                large_errors_cell, large_errors_section, markdown_table,
                                 score_rows)
 from sim.harness.runner import FELL
-from sim.harness.scoring import AXES, AXIS_UNITS, LARGE_ERROR_DEG, LARGE_ERROR_PX, LargeError
+from sim.harness.scoring import AXES, AXIS_UNITS, LargeError
 from sim.harness.suite.spec import SuiteSpec
 from sim.harness.suite.statistics import (BOOTSTRAP_SEED, CONFIDENCE_LEVEL, N_RESAMPLES,
                                           mean_interval, paired_difference)
@@ -189,16 +189,6 @@ def means_markdown(figures: dict) -> str:
                            for method, by in figures["means"].items()))
 
 
-def large_errors_markdown(figures: dict) -> str:
-    """Every method's "ok" estimates off by more than the large-error limits: sequence, frame
-    and absolute errors (``sim.harness.report.large_errors_table``)."""
-    return large_errors_table(
-        ((method, entry["sequence"], LargeError(entry["frame"], entry["rotation_deg"],
-                                                entry["x_px"], entry["y_px"]))
-         for method, totals in figures["large_errors"].items() for entry in totals["frames"]),
-        with_source=True)
-
-
 def failures_markdown(figures: dict) -> str:
     """Per method: its failed frames over all sequences, and how many of each status, each
     also as a share of all its frames."""
@@ -238,15 +228,13 @@ def differences_markdown(figures: dict) -> str:
 
 
 def _large_errors_section(figures: dict) -> list[str]:
-    """suite.md's list of the "ok" estimates off by more than the large-error limits; none
-    when there are none."""
-    if not any(totals["frames"] for totals in figures["large_errors"].values()):
-        return []
-    return [f"### {LARGE_ERRORS_TITLE}: the frames", "",
-            f"Estimates the method and the trust check called ok, off the truth by more than "
-            f"{LARGE_ERROR_DEG:g}° or {LARGE_ERROR_PX:g} px along an axis (absolute errors); "
-            f"per frame in the sequence's frames.csv (`runs/<sequence>/`).", "",
-            large_errors_markdown(figures), ""]
+    """suite.md's list of every method's "ok" estimates off by more than the large-error
+    limits, with their sequences; none when there are none."""
+    return large_errors_section(
+        [(method, entry["sequence"], LargeError(entry["frame"], entry["rotation_deg"],
+                                                entry["x_px"], entry["y_px"]))
+         for method, totals in figures["large_errors"].items() for entry in totals["frames"]],
+        where="; per frame in the sequence's frames.csv (`runs/<sequence>/`)")
 
 
 def sequences_markdown(outcomes: Sequence[RunOutcome]) -> str:

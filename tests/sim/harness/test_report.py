@@ -12,7 +12,7 @@ import pytest
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MAX_LISTED_LARGE_ERRORS, MEAN_ERROR_COLUMNS, aggregate_runs,
-                                failures_jsonl_text, large_errors_cell, large_errors_table,
+                                failures_jsonl_text, large_errors_cell, large_errors_section,
                                 markdown_table, read_metrics, score_rows, table_one,
                                 terminal_summary, write_run_outputs)
 from dataclasses import replace
@@ -416,7 +416,8 @@ def test_a_summary_without_such_estimates_lists_none_and_a_long_list_is_cut(tmp_
                              meta={}, status="complete", plots=False).summary_md.read_text()
     assert ": the frames" not in text
     errors = [LargeError(frame, 6.0, 0.0, 0.0) for frame in range(MAX_LISTED_LARGE_ERRORS + 3)]
-    table = large_errors_table(("m", "", error) for error in errors)
+    table = "\n".join(large_errors_section([("m", None, error) for error in errors]))
+    assert large_errors_section([]) == [] and "| Sequence |" not in table
     assert table.count("| m |") == MAX_LISTED_LARGE_ERRORS + 1
     assert f"| m | {MAX_LISTED_LARGE_ERRORS - 1} | 6.00 |" in table
     assert "| m | and 3 more |" in table
