@@ -108,7 +108,11 @@ def check_not_a_run(out_dir: str | os.PathLike, kind: str = "sequence") -> None:
 
 def check_folder_of_its_own(out_dir: str | os.PathLike, kind: str) -> None:
     """Refuse the output folder of a ``kind`` of job that writes runs in sub-folders (sweep,
-    suite, gate) when it holds a recorded sequence or a run."""
+    suite, gate) when it holds a recorded sequence or a run, or cannot be a folder
+    (:func:`~sim.atomic.check_output_path`)."""
+    from sim.atomic import check_output_path
+
+    check_output_path(out_dir)
     check_not_a_sequence(out_dir, kind)
     check_not_a_run(out_dir, kind)
 

@@ -351,6 +351,17 @@ def test_a_run_into_a_sequence_folder_is_refused(sequence_dir, tmp_path, capsys,
 
 
 @pytest.mark.parametrize("command, kind", JOBS_OF_RUNS)
+def test_a_job_of_runs_into_a_path_too_long_for_the_system_is_refused(tmp_path, capsys,
+                                                                      command, kind):
+    from sim.harness.cli import main
+
+    assert main([*command, "--out", str(tmp_path / ("a" * 300))]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot be looked up" in err and "accepted: a folder" in err and "\n" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command, kind", JOBS_OF_RUNS)
 def test_a_job_of_runs_into_a_run_folder_is_refused(tmp_path, capsys, command, kind):
     from sim.harness.cli import main
 
