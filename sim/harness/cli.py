@@ -227,16 +227,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_gate(args: argparse.Namespace) -> int:
-    from sim.atomic import check_output_path, prepare_output_dir
+    from sim.atomic import prepare_output_dir
     from sim.harness.gate import run_gate
     from sim.harness.runner import check_folder_of_its_own
 
-    check_folder_of_its_own(args.out, "gate")
+    check_folder_of_its_own(args.out, "gate")  # before the baseline's folder is made
     if args.update_baseline:
         if args.baseline.is_dir():
             raise ValueError(f"--baseline {args.baseline}: is a folder; accepted: the path of "
                              f"a JSON file (written at the end)")
-        check_output_path(args.out)  # before the baseline's folder is made
         prepare_output_dir(args.baseline.parent or Path("."), option="--baseline's folder")
     return run_gate(baseline_path=args.baseline, update=args.update_baseline,
                     out_dir=args.out)

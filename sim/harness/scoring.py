@@ -274,8 +274,8 @@ class MethodScore:
                           if with_epe else math.nan),
             n_large_errors=sum(record.large_error for record in scored),
             large_errors=tuple(LargeError.of(record) for record in
-                               sorted(scored, key=lambda record: record.frame_index)
-                               if record.large_error),
+                               sorted((record for record in scored if record.large_error),
+                                      key=lambda record: record.frame_index)),
         )
 
 
