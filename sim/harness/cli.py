@@ -167,9 +167,6 @@ def _cmd_score(args: argparse.Namespace) -> int:
     out_dir = check_output_path(out)
     metrics = score(config)
     print(terminal_summary(metrics, out_dir))
-    recorded = metrics["run"]["sequence"]
-    if recorded["ended"] == "interrupted":  # fewer frames than its scenario asks
-        print(f"Note: the sequence's recording was cut short ({recorded['message']})")
     return _ending("egostab score", metrics["status"], metrics["run"].get("message", ""))
 
 

@@ -211,6 +211,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
     """The content of summary.md."""
     state = provenance()
     seed = meta.get("seed", scenario.get("seed"))
+    cut_short = cut_short_note(meta)
     lines = [
         f"# {_scenario_name(scenario, files.run_dir)}: stabilizer errors against the simulated "
         "ground truth",
@@ -219,6 +220,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         f"Commit: {state['git_commit'] or 'unknown'}"
         f"{' (uncommitted changes)' if state['git_dirty'] else ''}.",
         "",
+        *([cut_short, ""] if cut_short else []),
         "## Absolute errors (the layout of Table I of Kang, Zhang & Park 2009)",
         "",
         "Mean, population variance and maximum of |estimate - truth| over the frames where both "
@@ -270,6 +272,15 @@ def truth_residual_line(residual: TruthResidual) -> str:
             f"px, over {residual.n:,} frames (per frame: `truth_residual_px` in frames.csv).")
 
 
+def cut_short_note(meta: Mapping) -> str | None:
+    """The note that a scored sequence's recording was interrupted, so that its frames end
+    before its scenario does; None for a run that simulated, or a whole sequence."""
+    recorded = meta.get("sequence")
+    if not recorded or recorded["ended"] != "interrupted":
+        return None
+    return f"Note: the sequence's recording was cut short ({recorded['message']})."
+
+
 def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:
     """One screen for the end of a run: Table I, EPE, failures/time/ITF, where the files are.
 
@@ -280,6 +291,9 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
     summary = RunSummary.from_dict(metrics["summary"])
     lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
              "", epe_table(summary.run), "", reliability_table(summary.run)]
+    note = cut_short_note(metrics.get("run", {}))
+    if note:
+        lines += ["", note]
     kept = _run_on_disk(run_dir) if run_dir is not None else None
     if kept is not None and kept.get("run", {}).get("wall_time_s") != metrics.get(
             "run", {}).get("wall_time_s"):

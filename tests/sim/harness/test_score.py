@@ -655,7 +655,15 @@ def test_scoring_a_recording_cut_short_says_so(tmp_path, interrupt_ground_truth,
                         max_frames=N_FRAMES))  # the 4th truth is interrupted; later ones are not
     assert main(["score", str(tmp_path / "seq"), "--methods", "ecc", "--out",
                  str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
-    assert "Note: the sequence's recording was cut short (interrupted" in capsys.readouterr().out
+    note = "Note: the sequence's recording was cut short (interrupted"
+    assert note in capsys.readouterr().out
+    assert note in (tmp_path / "out" / "summary.md").read_text()
+    # A whole sequence gets no such note.
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "whole"), max_frames=2))
+    assert main(["score", str(tmp_path / "whole"), "--methods", "ecc", "--out",
+                 str(tmp_path / "whole_out"), "--quiet", "--no-record"]) == 0
+    assert "cut short" not in capsys.readouterr().out
+    assert "cut short" not in (tmp_path / "whole_out" / "summary.md").read_text()
 
 
 def test_spreadsheet_rows_of_empty_cells_and_quotes_after_a_space_score_as_meant(folders,
