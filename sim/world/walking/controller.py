@@ -54,6 +54,9 @@ class WalkingController:
             placed this fraction of the measured CoM error away from the planned CoM, against
             the error.
         com_feedback_velocity_s: weight of the CoM velocity error in that error, s.
+        com_feedback_always: the CoM feedback from the start, unpushed walking included (a
+            change of every walk; docs/walking.md, "Push recovery", rejected choices); False: only
+            after a disturbance or with a widened sway.
         slip_tolerance_m: after a disturbance, a slip of the support foot from its planned
             position beyond this moves the plan onto it (``_follow_slip``).
         counterbalance: after a push detected in single support towards the support foot's
@@ -68,8 +71,8 @@ class WalkingController:
                  max_heading_correction_deg: float = 4.0,
                  step_adjustment: CapturePointStepper | None = None,
                  com_feedback_gain: float = 0.2, com_feedback_velocity_s: float = 0.6,
-                 slip_tolerance_m: float = 0.01, counterbalance: bool = True,
-                 follow_floor: bool = True):
+                 com_feedback_always: bool = False, slip_tolerance_m: float = 0.01,
+                 counterbalance: bool = True, follow_floor: bool = True):
         self.model = model
         self.gait = gait
         self.control_period_s = control_period_s
@@ -112,6 +115,7 @@ class WalkingController:
         self.step_adjustment = step_adjustment
         self.com_feedback_gain = com_feedback_gain
         self.com_feedback_velocity_s = com_feedback_velocity_s
+        self.com_feedback_always = bool(com_feedback_always)
         self.slip_tolerance_m = slip_tolerance_m
         self._slip_checked_step_s: float | None = None
         self.counterbalance_enabled = counterbalance
@@ -167,10 +171,11 @@ class WalkingController:
     def com_feedback_active(self) -> bool:
         """Whether the measured CoM feeds back into the torso placement: with a widened ZMP
         sway (``lateral_sway_m`` > 0), and once the step adjustment has seen a disturbance
-        (a push); never in the presets' unpushed walking, which stays as planned."""
+        (a push); never in the presets' unpushed walking, which stays as planned, unless
+        ``com_feedback_always``."""
         if not self.com_feedback_gain:
             return False
-        return self.gait.lateral_sway_m > 0.0 or (
+        return self.com_feedback_always or self.gait.lateral_sway_m > 0.0 or (
             self.step_adjustment is not None and self.step_adjustment.disturbed_at_s is not None)
 
     # -- control --------------------------------------------------------------------------

@@ -11,9 +11,9 @@ The seed draws the initial joint perturbation (RobotSimulation) and the push's p
 gait cycle, so several seeds push at several moments of the step.
 
 Run ``python -m sim.world.walking.push_recovery [--gaits ...] [--seeds N]
-[--no-step-adjustment] [--no-com-feedback] [--no-counterbalance]`` to print the table of
-docs/walking.md, "Push recovery": per gait and direction the largest impulse survived
-(bisection), for the worst and the best seed.
+[--no-step-adjustment] [--no-com-feedback | --com-feedback-always] [--no-counterbalance]``
+to print the table of docs/walking.md, "Push recovery": per gait and direction the largest
+impulse survived (bisection), for the worst and the best seed.
 """
 
 from __future__ import annotations
@@ -61,9 +61,10 @@ class PushTrial:
 def push_trial(model: mujoco.MjModel, gait: GaitParams | str, impulse_ns: float,
                direction_deg: float, seed: int = 0, speed_mps: float = 0.1,
                after_s: float = 4.0, step_adjustment: bool = True,
-               com_feedback: bool = True, counterbalance: bool = True) -> PushTrial:
+               com_feedback: bool | str = True, counterbalance: bool = True) -> PushTrial:
     """Push the walking robot horizontally by ``impulse_ns`` towards ``direction_deg``
-    (counter-clockwise from its walking direction) and walk on for ``after_s``."""
+    (counter-clockwise from its walking direction) and walk on for ``after_s``; the switches
+    are RobotSimulation's."""
     sim = RobotSimulation(model, gait=gait, seed=seed, step_adjustment=step_adjustment,
                           com_feedback=com_feedback, counterbalance=counterbalance)
     start_xy, start_yaw = sim.torso_pose()[0][:2], sim.torso_pose()[1]
@@ -118,15 +119,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-step-adjustment", action="store_true",
                         help="plan the footsteps from the commands alone (the controller before "
                              "push recovery)")
-    parser.add_argument("--no-com-feedback", action="store_true",
-                        help="no centre-of-mass feedback after a disturbance")
+    feedback = parser.add_mutually_exclusive_group()
+    feedback.add_argument("--no-com-feedback", action="store_true",
+                          help="no centre-of-mass feedback after a disturbance")
+    feedback.add_argument("--com-feedback-always", action="store_true",
+                          help="centre-of-mass feedback from the start, unpushed walking "
+                               "included (a change of every walk)")
     parser.add_argument("--no-counterbalance", action="store_true",
                         help="no counterbalance by the waist and the swing leg after a push "
                              "towards the support foot")
     args = parser.parse_args(argv)
     model = compile_world(assemble())
     options = dict(speed_mps=args.speed, step_adjustment=not args.no_step_adjustment,
-                   com_feedback=not args.no_com_feedback,
+                   com_feedback=("always" if args.com_feedback_always
+                                 else not args.no_com_feedback),
                    counterbalance=not args.no_counterbalance)
     print("| direction | " + " | ".join(f"`{g}`: worst / best seed (N s)" for g in args.gaits) + " |")
     print("|---|" + "---|" * len(args.gaits))

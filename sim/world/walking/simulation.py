@@ -54,7 +54,8 @@ class RobotSimulation:
             commands alone.
         com_feedback: push recovery and widened sway: once the step adjustment has seen a
             disturbance, or with ``lateral_sway_m`` > 0, the measured centre of mass feeds back
-            into the torso placement (WalkingController.com_feedback_active); False never.
+            into the torso placement (WalkingController.com_feedback_active); False never;
+            "always": from the start, unpushed walking included (a change of every walk).
         counterbalance: push recovery: after a push detected in single support towards the
             support foot's side, the waist rolls the upper body into the push and the swing leg
             swings away from it (counterbalance.py); False never.
@@ -62,8 +63,10 @@ class RobotSimulation:
 
     def __init__(self, model: mujoco.MjModel, gait: GaitParams | str = "default", seed: int = 0,
                  control_period_s: float = 0.01, init_joint_noise_rad: float = 0.002,
-                 step_adjustment: bool = True, com_feedback: bool = True,
+                 step_adjustment: bool = True, com_feedback: bool | str = True,
                  counterbalance: bool = True):
+        if com_feedback not in (True, False, "always"):
+            raise ValueError(f"com_feedback must be True, False or 'always'; got {com_feedback!r}")
         if control_period_s < model.opt.timestep:
             raise ValueError(f"control_period_s must be >= the physics timestep "
                              f"{model.opt.timestep}, got {control_period_s}")
@@ -81,6 +84,7 @@ class RobotSimulation:
                    if step_adjustment else None)
         self.controller = WalkingController(model, self.gait, self.control_period_s,
                                             step_adjustment=stepper, counterbalance=counterbalance,
+                                            com_feedback_always=com_feedback == "always",
                                             **({} if com_feedback else {"com_feedback_gain": 0.0}))
         self._falls = FallDetector(model)
         self.fall: FallEvent | None = None

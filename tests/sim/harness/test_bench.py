@@ -107,6 +107,7 @@ def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
     ("trust_properties.py", ["--cases", "0"], "--cases: '0': accepted: an integer >= 1"),
     ("trust_properties.py", ["--seed", "-3"], "--seed: '-3': accepted: an integer from 0"),
     ("floor_walks.py", ["--workers", "0"], "--workers: '0': accepted: an integer >= 1"),
+    ("abrupt_commands.py", ["--seeds", "-1"], "--seeds: '-1': accepted: an integer from 0"),
     ("icp_error_metrics.py", ["--cases", "3"], "unrecognized arguments: --cases 3"),
     ("t2fuzzy_failures.py", ["summary", "x", "--refinements", "no_such=1"],
      "--refinements no_such: no such setting"),

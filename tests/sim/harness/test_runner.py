@@ -202,7 +202,8 @@ def test_sensor_dropouts_are_reported_not_fatal(tmp_path, monkeypatch):
 @pytest.mark.parametrize("name", [path.stem for path in sorted(SCENARIOS_DIR.glob("*.toml"))])
 def test_robot_walks_each_shipped_scenario_without_touching_anything(name):
     """The whole command timeline under physics (no rendering): no fall and no body other
-    than the feet touching the scene (a wall, a desk, a stair), which FallDetector reports."""
+    than the feet touching the scene (a wall, a desk, a stair), which FallDetector reports;
+    without a push, no disturbance detected either (the walk follows its plan)."""
     from sim.harness.runner import scenario_robot, walk_until
     from sim.harness.scenario import load_scenario
 
@@ -212,6 +213,8 @@ def test_robot_walks_each_shipped_scenario_without_touching_anything(name):
     walk_until(scenario, robot, scenario.duration_s)  # a fall is recorded, never raised
     assert robot.fall is None, robot.fall
     assert np.linalg.norm(robot.torso_pose()[0][:2] - start[:2]) > 1.0  # it really walked
+    detected = robot.controller.step_adjustment.disturbed_at_s
+    assert (detected is None) == (not scenario.pushes), detected
 
 
 def test_scene_params_of_a_scenario_shape_the_walked_scene():

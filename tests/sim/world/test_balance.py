@@ -155,6 +155,27 @@ def test_com_feedback_saves_support_side_pushes_that_topple_the_controller_witho
     assert with_feedback.recovered, with_feedback
 
 
+def test_com_feedback_always_feeds_back_from_the_start(model):
+    assert RobotSimulation(model, com_feedback="always").controller.com_feedback_active
+    assert not RobotSimulation(model).controller.com_feedback_active
+    with pytest.raises(ValueError, match="com_feedback must be True, False or 'always'"):
+        RobotSimulation(model, com_feedback="sometimes")
+
+
+# Support-side pushes (docs/walking.md, "Known limits": the CoM feedback from the start): the
+# controller survives 1.00 N s (default, seed 0, left) and 1.50 N s (paper_like, seed 3,
+# right); with the feedback from the start, 2.00 and 2.12 N s.
+@pytest.mark.parametrize("gait, impulse_ns, direction, seed", [
+    ("default", 1.75, "left", 0), ("paper_like", 2.0, "right", 3)])
+def test_com_feedback_from_the_start_saves_support_side_pushes_the_controller_falls_to(
+        model, gait, impulse_ns, direction, seed):
+    after_push = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed)
+    always = push_trial(model, gait, impulse_ns, DIRECTIONS_DEG[direction], seed=seed,
+                        com_feedback="always")
+    assert after_push.fell
+    assert always.recovered, always
+
+
 @pytest.mark.parametrize("gait, impulse_ns", [("default", 0.875), ("paper_like", 1.5)])
 def test_counterbalance_saves_support_side_pushes_that_topple_the_controller_without_it(
         model, gait, impulse_ns):
@@ -325,3 +346,7 @@ def test_the_push_table_gives_the_worst_and_the_best_seed_per_direction(monkeypa
         "| left | 1.00 / 2.00 |", "| right | 0.50 / 1.00 |"]
     assert all(options == dict(speed_mps=0.1, step_adjustment=True, com_feedback=True,
                                counterbalance=False) for options in options_seen)
+    options_seen.clear()
+    push_recovery.main(["--gaits", "default", "--directions", "left", "--seeds", "1",
+                        "--com-feedback-always"])
+    assert options_seen and all(options["com_feedback"] == "always" for options in options_seen)
