@@ -1,7 +1,7 @@
 """Unpushed walks that change their command abruptly: is a disturbance detected, does the robot stand?
 
     python benchmarks/abrupt_commands.py                          # 18 walks, about 10 s
-    python benchmarks/abrupt_commands.py --com-feedback-always    # the CoM feedback from the start
+    python benchmarks/abrupt_commands.py --com-feedback-after-push --lateral-sway 0  # the controller before
 
 Each walk, with each gait preset and seed: stand 1 s, walk 10 s at the top speed, 5 s walking and
 turning at the top rates, then 5 s of one of three changes (turning in place the same way,
@@ -22,12 +22,17 @@ CHANGES = {"the same turn in place": (0.0, 1.0), "the other turn in place": (0.0
            "walking, the other turn": (1.0, -1.0)}
 
 
-def walk(gait: str, change: str, seed: int, com_feedback: bool | str) -> str:
+def walk(gait: str, change: str, seed: int, com_feedback: bool | str,
+         lateral_sway_m: float | None) -> str:
     """One walk; when a disturbance was detected, the steps adjusted, and a fall if any."""
-    from sim.world.assembly import assemble, compile_world
-    from sim.world.walking import RobotSimulation
+    from dataclasses import replace
 
-    robot = RobotSimulation(compile_world(assemble()), gait=gait, seed=seed,
+    from sim.world.assembly import assemble, compile_world
+    from sim.world.walking import GAIT_PRESETS, RobotSimulation
+
+    params = GAIT_PRESETS[gait] if lateral_sway_m is None else replace(
+        GAIT_PRESETS[gait], lateral_sway_m=lateral_sway_m)
+    robot = RobotSimulation(compile_world(assemble()), gait=params, seed=seed,
                             com_feedback=com_feedback)
     speed, yaw_rate = robot.gait.max_forward_speed_mps, robot.gait.max_yaw_rate_dps
     speed_share, yaw_share = CHANGES[change]
@@ -45,22 +50,28 @@ def walk(gait: str, change: str, seed: int, com_feedback: bool | str) -> str:
 
 
 def _walk(args) -> str:
-    gait, change, seed, com_feedback = args
-    return f"{gait:>10}  {change:<24} seed {seed}: {walk(gait, change, seed, com_feedback)}"
+    gait, change, seed, *controller = args
+    return f"{gait:>10}  {change:<24} seed {seed}: {walk(gait, change, seed, *controller)}"
 
 
 def main(argv: list[str] | None = None) -> int:
-    from sim.command_line import MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option
+    from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
+                                  number_option)
 
     parser = OneLineParser(prog="abrupt_commands.py", description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+", default=[0, 1, 2])
-    parser.add_argument("--com-feedback-always", action="store_true",
-                        help="the CoM feedback from the start (RobotSimulation com_feedback="
-                             "'always')")
+    parser.add_argument("--com-feedback-after-push", action="store_true",
+                        help="the CoM feedback only once a push is detected (RobotSimulation "
+                             "com_feedback='after_push', the controller before)")
+    parser.add_argument("--lateral-sway", type=number_option(-0.0375, 0.0375), default=None,
+                        metavar="M", help="the gaits' lateral_sway_m instead of the presets' "
+                                          "(0 with --com-feedback-after-push: the controller "
+                                          "before)")
     parser.add_argument("--workers", type=POSITIVE_INTEGER, default=2)
     args = parser.parse_args(argv)
-    com_feedback = "always" if args.com_feedback_always else True
-    jobs = list(itertools.product(GAITS, CHANGES, args.seeds, [com_feedback]))
+    com_feedback = "after_push" if args.com_feedback_after_push else True
+    jobs = list(itertools.product(GAITS, CHANGES, args.seeds, [com_feedback],
+                                  [args.lateral_sway]))
     with Pool(args.workers) as pool:
         for line in pool.imap(_walk, jobs):
             print(line, flush=True)

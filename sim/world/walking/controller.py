@@ -54,9 +54,9 @@ class WalkingController:
             placed this fraction of the measured CoM error away from the planned CoM, against
             the error.
         com_feedback_velocity_s: weight of the CoM velocity error in that error, s.
-        com_feedback_always: the CoM feedback from the start, unpushed walking included (a
-            change of every walk; docs/walking.md, "Push recovery", rejected choices); False: only
-            after a disturbance or with a widened sway.
+        com_feedback_after_push: the CoM feedback only once the step adjustment has seen a
+            disturbance, or with an outward sway (``lateral_sway_m`` > 0): the controller before
+            the feedback ran from the start (docs/walking.md, "Push recovery"); False: always.
         slip_tolerance_m: after a disturbance, a slip of the support foot from its planned
             position beyond this moves the plan onto it (``_follow_slip``).
         counterbalance: after a push detected in single support towards the support foot's
@@ -71,7 +71,7 @@ class WalkingController:
                  max_heading_correction_deg: float = 4.0,
                  step_adjustment: CapturePointStepper | None = None,
                  com_feedback_gain: float = 0.2, com_feedback_velocity_s: float = 0.6,
-                 com_feedback_always: bool = False, slip_tolerance_m: float = 0.01,
+                 com_feedback_after_push: bool = False, slip_tolerance_m: float = 0.01,
                  counterbalance: bool = True, follow_floor: bool = True):
         self.model = model
         self.gait = gait
@@ -115,7 +115,7 @@ class WalkingController:
         self.step_adjustment = step_adjustment
         self.com_feedback_gain = com_feedback_gain
         self.com_feedback_velocity_s = com_feedback_velocity_s
-        self.com_feedback_always = bool(com_feedback_always)
+        self.com_feedback_after_push = bool(com_feedback_after_push)
         self.slip_tolerance_m = slip_tolerance_m
         self._slip_checked_step_s: float | None = None
         self.counterbalance_enabled = counterbalance
@@ -169,13 +169,12 @@ class WalkingController:
 
     @property
     def com_feedback_active(self) -> bool:
-        """Whether the measured CoM feeds back into the torso placement: with a widened ZMP
-        sway (``lateral_sway_m`` > 0), and once the step adjustment has seen a disturbance
-        (a push); never in the presets' unpushed walking, which stays as planned, unless
-        ``com_feedback_always``."""
+        """Whether the measured CoM feeds back into the torso placement: always, unless
+        ``com_feedback_after_push`` (then with an outward ZMP sway, ``lateral_sway_m`` > 0, and
+        once the step adjustment has seen a disturbance) or the gain is 0."""
         if not self.com_feedback_gain:
             return False
-        return self.com_feedback_always or self.gait.lateral_sway_m > 0.0 or (
+        return not self.com_feedback_after_push or self.gait.lateral_sway_m > 0.0 or (
             self.step_adjustment is not None and self.step_adjustment.disturbed_at_s is not None)
 
     # -- control --------------------------------------------------------------------------

@@ -66,10 +66,13 @@ class GaitParams:
             ``step_yaw_max_deg / step_period_s``.
         step_height_m: swing foot lift at mid-swing.
         step_width_m: lateral distance between the feet centres.
-        lateral_sway_m: extra lateral offset of the ZMP reference towards the outside of the
-            support foot; it widens the body's side-to-side sway (0 = ZMP at the foot centre).
-            Above 0 the controller's CoM feedback is on (docs/walking.md, "Push recovery"):
-            without it the real body overshoots the wider sway and falls.
+        lateral_sway_m: lateral offset of the ZMP reference from the support foot's centre,
+            towards its outside: above 0 it widens the body's side-to-side sway, below 0 it
+            keeps the body nearer the other foot. Default -0.01: single support then starts
+            with room on the support foot's outer side for a push towards it
+            (docs/walking.md, "Push recovery"). Above 0 the CoM feedback is on even in the
+            controller that feeds back only after a push: without it the real body overshoots
+            the wider sway and falls.
         com_height_m: height of the centre of mass above the soles, the LIPM's z_c.
         torso_lean_deg: forward pitch of the torso while walking; the neck tilts the head back
             by the same angle so the camera stays level on average.
@@ -93,7 +96,7 @@ class GaitParams:
     step_yaw_max_deg: float = 12.0
     step_height_m: float = 0.03
     step_width_m: float = 0.09
-    lateral_sway_m: float = 0.0
+    lateral_sway_m: float = -0.01
     com_height_m: float = 0.33
     torso_lean_deg: float = 3.0
     waist_roll_amp_deg: float = 2.0

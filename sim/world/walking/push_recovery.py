@@ -11,21 +11,21 @@ The seed draws the initial joint perturbation (RobotSimulation) and the push's p
 gait cycle, so several seeds push at several moments of the step.
 
 Run ``python -m sim.world.walking.push_recovery [--gaits ...] [--seeds N]
-[--no-step-adjustment] [--no-com-feedback | --com-feedback-always] [--no-counterbalance]``
-to print the table of docs/walking.md, "Push recovery": per gait and direction the largest
-impulse survived (bisection), for the worst and the best seed.
+[--no-step-adjustment] [--no-com-feedback | --com-feedback-after-push] [--lateral-sway M]
+[--no-counterbalance]`` to print the table of docs/walking.md, "Push recovery": per gait and
+direction the largest impulse survived (bisection), for the worst and the best seed.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
 from sim.command_line import POSITIVE_INTEGER, OneLineParser, number_option
-from sim.world.walking.gait import GAIT_PRESETS, GaitParams
+from sim.world.walking.gait import GAIT_PRESETS, SOLE_HALF_WIDTH_M, GaitParams
 from sim.world.walking.simulation import RobotSimulation
 from sim.world.assembly import assemble, compile_world
 
@@ -121,17 +121,22 @@ def main(argv: list[str] | None = None) -> None:
                              "push recovery)")
     feedback = parser.add_mutually_exclusive_group()
     feedback.add_argument("--no-com-feedback", action="store_true",
-                          help="no centre-of-mass feedback after a disturbance")
-    feedback.add_argument("--com-feedback-always", action="store_true",
-                          help="centre-of-mass feedback from the start, unpushed walking "
-                               "included (a change of every walk)")
+                          help="no centre-of-mass feedback")
+    feedback.add_argument("--com-feedback-after-push", action="store_true",
+                          help="centre-of-mass feedback only once a push is detected (the "
+                               "controller before it fed back from the start)")
+    parser.add_argument("--lateral-sway", type=number_option(-SOLE_HALF_WIDTH_M,
+                                                             SOLE_HALF_WIDTH_M),
+                        default=None, metavar="M",
+                        help="the gaits' lateral_sway_m instead of the presets' (0: the ZMP "
+                             "reference at the sole's centre, as the controller before)")
     parser.add_argument("--no-counterbalance", action="store_true",
                         help="no counterbalance by the waist and the swing leg after a push "
                              "towards the support foot")
     args = parser.parse_args(argv)
     model = compile_world(assemble())
     options = dict(speed_mps=args.speed, step_adjustment=not args.no_step_adjustment,
-                   com_feedback=("always" if args.com_feedback_always
+                   com_feedback=("after_push" if args.com_feedback_after_push
                                  else not args.no_com_feedback),
                    counterbalance=not args.no_counterbalance)
     print("| direction | " + " | ".join(f"`{g}`: worst / best seed (N s)" for g in args.gaits) + " |")
@@ -139,7 +144,10 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.directions:
         cells = []
         for gait in args.gaits:
-            survived = [largest_survived_impulse(model, gait, DIRECTIONS_DEG[name], seed, **options)
+            params = GAIT_PRESETS[gait] if args.lateral_sway is None else replace(
+                GAIT_PRESETS[gait], lateral_sway_m=args.lateral_sway)
+            survived = [largest_survived_impulse(model, params, DIRECTIONS_DEG[name], seed,
+                                                 **options)
                         for seed in range(args.seeds)]
             cells.append(f"{min(survived):.2f} / {max(survived):.2f}")
         print(f"| {name} | " + " | ".join(cells) + " |", flush=True)

@@ -52,10 +52,10 @@ class RobotSimulation:
         step_adjustment: push recovery: move the footsteps from the measured capture point
             (CapturePointStepper, docs/walking.md "Push recovery"); False plans from the
             commands alone.
-        com_feedback: push recovery and widened sway: once the step adjustment has seen a
-            disturbance, or with ``lateral_sway_m`` > 0, the measured centre of mass feeds back
-            into the torso placement (WalkingController.com_feedback_active); False never;
-            "always": from the start, unpushed walking included (a change of every walk).
+        com_feedback: the measured centre of mass feeds back into the torso placement
+            (WalkingController.com_feedback_active) from the start; "after_push": only once
+            the step adjustment has seen a disturbance, or with ``lateral_sway_m`` > 0 (the
+            controller before, docs/walking.md "Push recovery"); False: never.
         counterbalance: push recovery: after a push detected in single support towards the
             support foot's side, the waist rolls the upper body into the push and the swing leg
             swings away from it (counterbalance.py); False never.
@@ -65,8 +65,9 @@ class RobotSimulation:
                  control_period_s: float = 0.01, init_joint_noise_rad: float = 0.002,
                  step_adjustment: bool = True, com_feedback: bool | str = True,
                  counterbalance: bool = True):
-        if com_feedback not in (True, False, "always"):
-            raise ValueError(f"com_feedback must be True, False or 'always'; got {com_feedback!r}")
+        if com_feedback not in (True, False, "after_push"):
+            raise ValueError(f"com_feedback must be True, False or 'after_push'; got "
+                             f"{com_feedback!r}")
         if control_period_s < model.opt.timestep:
             raise ValueError(f"control_period_s must be >= the physics timestep "
                              f"{model.opt.timestep}, got {control_period_s}")
@@ -84,7 +85,7 @@ class RobotSimulation:
                    if step_adjustment else None)
         self.controller = WalkingController(model, self.gait, self.control_period_s,
                                             step_adjustment=stepper, counterbalance=counterbalance,
-                                            com_feedback_always=com_feedback == "always",
+                                            com_feedback_after_push=com_feedback == "after_push",
                                             **({} if com_feedback else {"com_feedback_gain": 0.0}))
         self._falls = FallDetector(model)
         self.fall: FallEvent | None = None

@@ -213,6 +213,7 @@ def test_robot_walks_each_shipped_scenario_without_touching_anything(name):
     walk_until(scenario, robot, scenario.duration_s)  # a fall is recorded, never raised
     assert robot.fall is None, robot.fall
     assert np.linalg.norm(robot.torso_pose()[0][:2] - start[:2]) > 1.0  # it really walked
+    # Pushed, the robot catches itself with a step (the pushes are large enough for one).
     detected = robot.controller.step_adjustment.disturbed_at_s
     assert (detected is None) == (not scenario.pushes), detected
 

@@ -334,9 +334,16 @@ def test_following_the_measured_floor_walks_where_the_level_plan_fell(
     # at a given instant differs between machines (on one, 3.9 degrees at 21 s, 3.4 before).
     slopes = [math.degrees(math.atan(math.hypot(*slope))) for slope in estimates]
     assert float(np.median(slopes)) == pytest.approx(3.0, abs=0.5)
-    rises_towards = [math.degrees(math.atan2(slope[1], slope[0])) for slope in estimates]
-    off = [abs(math.remainder(angle - slope_direction_deg, 360.0)) for angle in rises_towards]
-    assert float(np.median(off)) < 5.0
+    # Its direction: the estimate is replaced only when a measurement differs from it by more
+    # than its tolerance (FloorEstimate, 1 degree of gradient), so it may stay off the floor's
+    # gradient by up to that much; at 3 degrees that is up to 19 degrees of direction (over the
+    # 32 walks of benchmarks/floor_walks.py the median direction is 0.7 degrees off, the worst
+    # 8.0; 0.1 and 8.1 with the controller that fed the CoM back only after a push).
+    rise = math.radians(slope_direction_deg)
+    floor = math.tan(math.radians(3.0)) * np.array([math.cos(rise), math.sin(rise)])
+    off = [math.degrees(math.atan(float(np.linalg.norm(np.subtract(slope, floor)))))
+           for slope in estimates]
+    assert float(np.median(off)) <= 1.0
 
 
 @pytest.mark.parametrize("gait", ["default", "paper_like"])
