@@ -359,6 +359,9 @@ def _robot_momentum_after_push(text: str, until_s: float, contacts: bool):
     from sim.world.humanoid import TORSO_BODY_NAME
 
     robot = scenario_robot(scenario_module.scenario_from_dict(__import__("tomllib").loads(text)))
+    # The controller's CoM feedback answers the push (and, without contacts, the free fall)
+    # with joint motions that move the twins apart: off, the two differ by the push alone.
+    robot.controller.com_feedback_gain = 0.0
     if not contacts:
         robot.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     robot.run(until_s)
