@@ -7,8 +7,7 @@ Each walk, with each gait preset and seed: stand 1 s, walk 10 s at the top speed
 turning at the top rates, then 5 s of one of three changes (turning in place the same way,
 turning in place the other way, walking on and turning the other way), then 2 s stopped. One line
 per walk: when the step adjustment first detected a disturbance (there is no push), how many steps
-it adjusted, and whether the robot fell. docs/walking.md ("Push detection" and "Known limits")
-quotes the result.
+it adjusted, and whether the robot fell. docs/walking.md ("Push detection") quotes the result.
 """
 
 from __future__ import annotations
@@ -57,13 +56,14 @@ def _walk(args) -> str:
 def main(argv: list[str] | None = None) -> int:
     from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
                                   number_option)
+    from sim.world.walking.gait import SOLE_HALF_WIDTH_M
 
     parser = OneLineParser(prog="abrupt_commands.py", description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=integer_option(0, MAX_SEED), nargs="+", default=[0, 1, 2])
     parser.add_argument("--com-feedback-after-push", action="store_true",
                         help="the CoM feedback only once a push is detected (RobotSimulation "
                              "com_feedback='after_push', the controller before)")
-    parser.add_argument("--lateral-sway", type=number_option(-0.0375, 0.0375), default=None,
+    parser.add_argument("--lateral-sway", type=number_option(-SOLE_HALF_WIDTH_M, SOLE_HALF_WIDTH_M), default=None,
                         metavar="M", help="the gaits' lateral_sway_m instead of the presets' "
                                           "(0 with --com-feedback-after-push: the controller "
                                           "before)")

@@ -325,7 +325,15 @@ def test_the_push_table_gives_the_worst_and_the_best_seed_per_direction(monkeypa
     assert all(options == dict(speed_mps=0.1, step_adjustment=True, com_feedback=True,
                                counterbalance=False) for options in options_seen)
     options_seen.clear()
+    gaits_seen = []
+
+    def trial_of_gait(model, gait, *args, **options):
+        gaits_seen.append(gait)
+        return trial(model, gait, *args, **options)
+
+    monkeypatch.setattr(push_recovery, "push_trial", trial_of_gait)
     push_recovery.main(["--gaits", "default", "--directions", "left", "--seeds", "1",
-                        "--com-feedback-after-push"])
+                        "--com-feedback-after-push", "--lateral-sway", "0"])
     assert options_seen and all(options["com_feedback"] == "after_push"
                                 for options in options_seen)
+    assert all(gait == replace(GAIT_PRESETS["default"], lateral_sway_m=0.0) for gait in gaits_seen)
