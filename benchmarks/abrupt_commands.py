@@ -63,10 +63,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--com-feedback-after-push", action="store_true",
                         help="the CoM feedback only once a push is detected (RobotSimulation "
                              "com_feedback='after_push', the controller before)")
-    parser.add_argument("--lateral-sway", type=number_option(-SOLE_HALF_WIDTH_M, SOLE_HALF_WIDTH_M), default=None,
-                        metavar="M", help="the gaits' lateral_sway_m instead of the presets' "
-                                          "(0 with --com-feedback-after-push: the controller "
-                                          "before)")
+    parser.add_argument("--lateral-sway", type=number_option(-SOLE_HALF_WIDTH_M,
+                                                             SOLE_HALF_WIDTH_M),
+                        default=None, metavar="M",
+                        help="the gaits' lateral_sway_m instead of the presets' (0 with "
+                             "--com-feedback-after-push: the controller before)")
     parser.add_argument("--workers", type=POSITIVE_INTEGER, default=2)
     args = parser.parse_args(argv)
     com_feedback = "after_push" if args.com_feedback_after_push else True

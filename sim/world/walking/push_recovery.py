@@ -139,13 +139,13 @@ def main(argv: list[str] | None = None) -> None:
                    com_feedback=("after_push" if args.com_feedback_after_push
                                  else not args.no_com_feedback),
                    counterbalance=not args.no_counterbalance)
+    gaits = {gait: GAIT_PRESETS[gait] if args.lateral_sway is None else replace(
+        GAIT_PRESETS[gait], lateral_sway_m=args.lateral_sway) for gait in args.gaits}
     print("| direction | " + " | ".join(f"`{g}`: worst / best seed (N s)" for g in args.gaits) + " |")
     print("|---|" + "---|" * len(args.gaits))
     for name in args.directions:
         cells = []
-        for gait in args.gaits:
-            params = GAIT_PRESETS[gait] if args.lateral_sway is None else replace(
-                GAIT_PRESETS[gait], lateral_sway_m=args.lateral_sway)
+        for params in gaits.values():
             survived = [largest_survived_impulse(model, params, DIRECTIONS_DEG[name], seed,
                                                  **options)
                         for seed in range(args.seeds)]
