@@ -712,7 +712,7 @@ class Verifier:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
                                    verify_candidate_correlation=rival[1])
-        if failed is None and (abs(motion.angle_deg) > params.still_deg
+        if failed is None and (abs(float(wrap_angle_deg(motion.angle_deg))) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = null_correlation >= optimum_correlation - params.null_margin
             if still:  # the edges stayed put; the depth may say the frames moved all the same

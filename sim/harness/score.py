@@ -292,13 +292,13 @@ def _read_estimates(path: Path, text: str, n_frames: int) -> dict:
                 continue  # a row of empty cells (`,,,,`), as spreadsheets export below the data
             # The line the row ends on: blank lines are skipped, a quoted field may span lines.
             where = f"{path}:{reader.line_num}"
-            # Cells beyond the header's (csv puts them under None): an unquoted decimal comma
-            # shifts the values; empty ones (a trailing comma) are harmless.
+            # Cells beyond the header's (csv puts them under None): a decimal comma shifts the
+            # values; empty ones (a trailing comma) are harmless.
             if any(value.strip() for value in cells.get(None) or ()):
                 raise FileValueError(where, "row", f"has {len(header) + len(cells[None])} "
                                      f"cells, the header {len(header)}",
-                                     "one cell per column of the header (a number with a "
-                                     "decimal comma must be quoted, or written with a point)")
+                                     "one cell per column of the header (numbers take a "
+                                     "decimal point: a decimal comma splits one in two)")
 
             def number(name: str) -> float:
                 text = (cells.get(name) or "").strip()

@@ -83,15 +83,18 @@ def test_a_shift_beyond_float32s_range_fails_on_its_overlap_without_warnings(far
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "overlap"
 
 
-def test_a_motion_invented_on_frames_that_did_not_move_fails():
-    checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(1.5, 1.0, -1.0))
+# Whole turns more or less are the same motion: a program may write angles in [0, 360).
+@pytest.mark.parametrize("turns", [0, 1, -2])
+def test_a_motion_invented_on_frames_that_did_not_move_fails(turns):
+    checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(1.5 + 360.0 * turns, 1.0, -1.0))
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "no_motion"
     assert checked.diagnostics["verify_optimum"] == pytest.approx((0.0, 0.0, 0.0), abs=0.05)
 
 
-def test_a_tiny_motion_on_frames_that_did_not_move_passes():
-    checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(0.5, 0.5, -0.5))
-    assert checked.ok
+@pytest.mark.parametrize("turns", [0, 1, -2])
+def test_a_tiny_motion_on_frames_that_did_not_move_passes(turns):
+    checked = Verifier(REFERENCE)(REFERENCE.copy(), Motion(0.5 + 360.0 * turns, 0.5, -0.5))
+    assert checked.ok, checked.diagnostics
 
 
 def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():

@@ -609,8 +609,14 @@ def test_a_row_with_more_cells_than_the_header_is_refused_unless_they_are_empty(
                  str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
     assert capsys.readouterr().err.strip() == (
         f"egostab score: error: {path}:4: row: has 5 cells, the header 4; allowed: one cell per "
-        "column of the header (a number with a decimal comma must be quoted, or written with a "
-        "point)")
+        "column of the header (numbers take a decimal point: a decimal comma splits one in two)")
+    # Quoted, the decimal comma keeps the cells in line, and the value is still no number.
+    path.write_text("frame,angle_deg,dx,dy\n" + "\n".join(rows[:2] + ['2,0,"1,5",0'] + rows[3:]))
+    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
+                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"egostab score: error: {path}:4: dx: '1,5' is not a number; allowed: a decimal number "
+        "such as -1.5 or 2e-3")
     path.write_text("frame,angle_deg,dx,dy\n" + "".join(f"{row},,\n" for row in rows))
     assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
                  str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
