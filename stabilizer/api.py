@@ -9,9 +9,11 @@ that has a ``second_look(current, checked) -> Motion | None`` method is offered 
 that passed the check: a Motion it returns is a new estimate, checked in its turn, which
 replaces the first if it passes and lines up the frames' depth edges at least as well
 (``verify_correlation``; ``t2fuzzy`` takes a second look at the estimates the check doubts,
-:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). A failed estimate gets no second
+:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). One that passes but lines them up
+worse, beyond the check's offset limits of the first, is a rival: the estimate fails as
+``"ambiguous"`` (``VerificationParams.second_look_rivals``). A failed estimate gets no second
 look: a second chance to pass the check would let more wrong estimates through, so the frames
-that end ``"ok"`` are those whose first estimate passed.
+that end ``"ok"`` are among those whose first estimate passed.
 
 ======================  ===========================================  ========================
 method                  estimator                                    smallest image side
@@ -42,7 +44,7 @@ import numpy as np
 from stabilizer.inputs import as_disparity
 from stabilizer.motion import Motion
 from stabilizer.t2fuzzy_refinements import Refinements
-from stabilizer.verification import VerificationParams, shared_verifier
+from stabilizer.verification import UNVERIFIED, VerificationParams, shared_verifier
 
 #: Method name -> ("module:class", default parameters). Each class is built as
 #: ``cls(reference, **params)`` (the reference analysed once), has ``estimate(current) ->
@@ -144,6 +146,14 @@ class Stabilizer:
         elif (rechecked.diagnostics["verify_correlation"]
               < checked.diagnostics["verify_correlation"]):
             failed = "edges"  # the new estimate passes, but lines the depth edges up worse
+            if (self._verifier.params.second_look_rivals
+                    and self._verifier.beyond_offset(again, checked)):
+                # Two motions beyond the offset limits of each other both pass: a rival.
+                return Motion.failed(UNVERIFIED, **dict(
+                    checked.diagnostics, verify_failed="ambiguous",
+                    unverified_motion=checked.as_tuple(), verify_candidate=again.as_tuple(),
+                    verify_candidate_correlation=rechecked.diagnostics["verify_correlation"],
+                    second_look=again.as_tuple(), second_look_failed=failed))
         else:
             return rechecked
         return replace(checked, diagnostics=dict(checked.diagnostics, second_look=again.as_tuple(),

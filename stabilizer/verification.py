@@ -25,6 +25,7 @@ from stabilizer.inputs import (
     MAX_ITERATIONS,
     MAX_SIGMA_PX,
     check_angles,
+    check_flag,
     check_integer,
     check_number,
 )
@@ -157,6 +158,13 @@ class VerificationParams:
             a little. Default 0.03 (docs/method.md, section 11, "Near and far").
         candidate_angles_deg: the angles the search tries. Default -15 to 15 in steps of 5, the
             walking range (stabilizer.peers.start_search uses the same grid).
+        second_look_rivals: a method's second look at an estimate the check doubts (its
+            ``second_look``, which :class:`stabilizer.Stabilizer` checks too) that passes the
+            check but lines the depth edges up worse than the estimate, and lies beyond
+            ``max_offset_deg`` or ``max_offset_px`` of it, fails the estimate as
+            ``"ambiguous"``: two motions that far apart both pass, and the method's measure
+            and the edges disagree on which is right. Default True (docs/method.md, section 12,
+            "A second look"); False: the estimate stands.
     """
 
     min_correlation: float = 0.40
@@ -183,6 +191,7 @@ class VerificationParams:
     max_far_offset_px: float = 7.0
     far_margin: float = 0.03
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
+    second_look_rivals: bool = True
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.
@@ -204,6 +213,7 @@ class VerificationParams:
                      "far_margin"):  # may be < 0
             check_number(name, getattr(self, name))
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
+        check_flag("second_look_rivals", self.second_look_rivals)
 
 
 def edge_image(image: np.ndarray, sigma_px: float,
@@ -824,7 +834,7 @@ class Verifier:
         if current.candidate is None:
             current.candidate = self.candidate(current.half)
         candidate = current.candidate
-        if not (self._beyond_offset(candidate, optimum) or self._beyond_offset(candidate, motion)):
+        if not (self.beyond_offset(candidate, optimum) or self.beyond_offset(candidate, motion)):
             return None
         if current.candidate_ends is None:
             ends = [self.local_optimum(current.half, candidate) or candidate]
@@ -836,7 +846,7 @@ class Verifier:
             current.candidate_ends = [[end, None] for end in ends]
         rivals = []
         for kept in current.candidate_ends:  # [end, its correlation once measured]
-            if self._beyond_offset(kept[0], motion):
+            if self.beyond_offset(kept[0], motion):
                 if kept[1] is None:
                     kept[1] = structure_correlation(*self._reference, *current.edges,
                                                     kept[0])[0]
@@ -854,7 +864,7 @@ class Verifier:
         return (abs(float(wrap_angle_deg(motion.angle_deg)))
                 > widest + self.params.max_offset_deg)
 
-    def _beyond_offset(self, motion: Motion, other: Motion) -> bool:
+    def beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
         return (abs(float(wrap_angle_deg(motion.angle_deg - other.angle_deg)))
                 > self.params.max_offset_deg

@@ -12,6 +12,7 @@ from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.t2fuzzy_refinements import Refinements
 from stabilizer.testing import make_depth_scene
 from stabilizer.verification import VerificationParams
+from tests.stabilizer.walking_frames import walking_frames
 
 REFERENCE = stabilizer.depth_to_disparity(make_depth_scene(0))
 
@@ -203,6 +204,34 @@ def test_a_second_look_that_lines_the_edges_up_worse_leaves_the_first_estimate()
     result = _stabilizer_with(_SecondLooking(TRUTH, near)).estimate(CURRENT)
     assert result.as_tuple() == TRUTH.as_tuple()
     assert result.diagnostics["second_look_failed"] == "edges"
+
+
+def test_a_second_look_beyond_the_offset_limits_that_passes_makes_the_estimate_ambiguous():
+    """Frames 283 (the reference) and 311 of the lab walk with scene seed 2028 and the
+    paper-like gait (a development seed of docs/method.md, section 12, "A second look"): the
+    truth turns by 6.8 degrees; `t2fuzzy` answers 0.6 degrees, where the depth edges line up
+    better (0.72) than at the truth (0.31), and passes the check. Its second look, 6.5 degrees,
+    passes too, 5.9 degrees from the first: two motions that far apart both pass, and the
+    estimate fails as ambiguous with the second look as its rival. Without the rule it stood,
+    6.3 degrees off."""
+    reference, current = walking_frames("lab_paper_like_2028", 283, 311)
+    truth = Motion(6.8455660001684535, 13.97872602132828, -6.995054018167615)
+    result = stabilizer.Stabilizer(reference, "t2fuzzy").estimate(current)
+    assert result.status == "unverified" and result.diagnostics["verify_failed"] == "ambiguous"
+    first, rival = (Motion(*result.diagnostics[key]) for key in ("unverified_motion",
+                                                                   "verify_candidate"))
+    assert abs(first.angle_deg - truth.angle_deg) > 5.0
+    assert abs(rival.angle_deg - truth.angle_deg) < 1.0
+    assert result.diagnostics["second_look"] == rival.as_tuple()
+    without = stabilizer.Stabilizer(reference, "t2fuzzy", verification=VerificationParams(
+        second_look_rivals=False)).estimate(current)
+    assert without.ok and without.as_tuple() == first.as_tuple()
+    assert without.diagnostics["second_look_failed"] == "edges"
+
+
+def test_second_look_rivals_is_a_flag():
+    with pytest.raises(ValueError, match="second_look_rivals must be True or False"):
+        VerificationParams(second_look_rivals=1)
 
 
 def test_no_second_look_after_a_failed_check_without_the_check_or_for_a_failure():
