@@ -164,7 +164,7 @@ class VerificationParams:
             ``max_offset_deg`` or ``max_offset_px`` of it, fails the estimate as
             ``"ambiguous"``: two motions that far apart both pass, and the method's measure
             and the edges disagree on which is right. Default True (docs/method.md, section 12,
-            "A second look"); False: the estimate stands.
+            "A second look", "Rivals"); False: the estimate stands.
     """
 
     min_correlation: float = 0.40
