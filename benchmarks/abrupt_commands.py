@@ -13,6 +13,7 @@ it adjusted, and whether the robot fell. docs/walking.md ("Push detection") quot
 from __future__ import annotations
 
 import itertools
+import sys
 from multiprocessing import Pool
 
 GAITS = ("default", "paper_like")
@@ -80,4 +81,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from sim.command_line import script_status
+
+    sys.exit(script_status(main))

@@ -7,8 +7,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
+
+#: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
+#: command that SIGPIPE ended.
+BROKEN_PIPE_STATUS = 141
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -27,6 +33,29 @@ class OneLineParser(argparse.ArgumentParser):
             chosen = commands.choices.get(getattr(parsed, "command", None)) if commands else None
             (chosen or self).error(f"unrecognized arguments: {' '.join(unknown)}")
         return parsed
+
+
+def discard_output() -> None:
+    """Send what is left of stdout to /dev/null, so that Python's own last flush of it does not
+    fail again (with a second message and status 120)."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
+def script_status(main: Callable[[], int | None]) -> int | str:
+    """The exit status of a developer tool's ``main()`` (None: 0; a ``SystemExit``'s code, as
+    argparse's ``--help`` and errors end), its output written out; a reader that has gone
+    (``python benchmarks/floor_walks.py | head``) ends it quietly with
+    :data:`BROKEN_PIPE_STATUS`, as ``egostab`` does, not with a traceback."""
+    try:
+        try:
+            status = main()
+        except SystemExit as stop:
+            status = stop.code
+        sys.stdout.flush()
+    except BrokenPipeError:
+        discard_output()
+        return BROKEN_PIPE_STATUS
+    return status or 0
 
 
 def integer_option(least: int, most: int | None = None) -> Callable[[str], int]:

@@ -34,6 +34,7 @@ import dataclasses
 import functools
 import math
 import os
+import sys
 import tempfile
 import time
 from collections.abc import Sequence
@@ -690,4 +691,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from sim.command_line import script_status
+
+    sys.exit(script_status(main))

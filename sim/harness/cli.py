@@ -13,22 +13,17 @@ from __future__ import annotations
 # Only light modules here: the heavy ones (numpy, OpenCV, MuJoCo, the subcommands' modules: a
 # second) load within main(), where a stop signal ends the command with one line.
 import argparse
-import os
 import signal
 import sys
 from pathlib import Path
 from typing import NoReturn
 
 from scenarios import DEFAULT_SCENARIO
-from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
-                              number_option, path_option)
+from sim.command_line import (BROKEN_PIPE_STATUS, MAX_SEED, POSITIVE_INTEGER, OneLineParser,
+                              discard_output, integer_option, number_option, path_option)
 from sim.harness.interrupts import (INTERRUPTED_STATUS, STOP_SIGNALS, ProcessStops,
                                     interrupt_reason, stop_signals_interrupt)
 from sim.harness.threads import WORKERS_PER_CORE
-
-#: Exit status when the reader of the output went away: 128 + SIGPIPE, as a shell reports a
-#: command that SIGPIPE ended.
-BROKEN_PIPE_STATUS = 141
 
 #: Where runs write unless told otherwise: results/<scenario name>/.
 DEFAULT_RESULTS = Path("results")
@@ -440,7 +435,7 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
         print(f"{command}: error: {error}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader has gone (`egostab list | head -1`): end quietly
-        _discard_output()
+        discard_output()
         return BROKEN_PIPE_STATUS
     except RuntimeError as error:
         # Imported here: the module costs every command's start 15-20 ms.
@@ -461,12 +456,6 @@ def main(argv: list[str] | None = None, stops: ProcessStops | None = None) -> in
         return INTERRUPTED_STATUS
 
 
-def _discard_output() -> None:
-    """Send what is left of stdout to /dev/null, so that Python's own last flush of it does not
-    fail again (with a second message and status 120)."""
-    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-
-
 def _written_out(status: int, command: str) -> int:
     """``status`` once the buffered output is written: a reader that has gone ends the command
     quietly (:data:`BROKEN_PIPE_STATUS`); output that cannot be written (a full disk) is an
@@ -474,10 +463,10 @@ def _written_out(status: int, command: str) -> int:
     try:
         sys.stdout.flush()
     except BrokenPipeError:
-        _discard_output()
+        discard_output()
         return BROKEN_PIPE_STATUS
     except OSError as error:
-        _discard_output()
+        discard_output()
         print(f"{command}: error: its output could not be written: {_describe_os_error(error)}",
               file=sys.stderr)
         return status or 2

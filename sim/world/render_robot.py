@@ -20,7 +20,7 @@ import numpy as np
 
 from robot_models import HUMANOID_DIR, humanoid_path
 from sim.atomic import atomic_path
-from sim.command_line import OneLineParser, integer_option, path_option
+from sim.command_line import OneLineParser, integer_option, path_option, script_status
 
 #: Where the README expects the picture.
 DEFAULT_PICTURE_PATH = HUMANOID_DIR / "humanoid.png"
@@ -109,4 +109,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script_status(main))

@@ -1,7 +1,9 @@
 """sim.command_line: one-line errors with exit status 2, and the tools that use them."""
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -53,3 +55,21 @@ def test_a_camera_swing_walk_too_short_to_measure_is_refused():
 
     with pytest.raises(ValueError, match="a walk of 1 s ends within its first 3 gait cycles"):
         measure_camera_swing("default", walk_s=1.0)
+
+
+@pytest.mark.parametrize("tool", [
+    ["benchmarks/trust_properties.py", "--cases", "1", "--methods", "icp"],
+    ["-m", "sim.world.sensor.calibration"],
+])
+def test_a_tools_output_to_a_reader_that_has_gone_ends_quietly_with_status_141(tool):
+    # `python benchmarks/floor_walks.py | head`: the pipe's reading end closed before the first
+    # line. They ended in a BrokenPipeError traceback; `egostab` ends with 141 and no message.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        done = subprocess.run([sys.executable, "-u", *tool], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True, timeout=120,
+                              cwd=Path(__file__).parents[2])
+    finally:
+        os.close(write_end)
+    assert done.returncode == 141 and done.stderr == ""

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from sim.command_line import OneLineParser
+from sim.command_line import OneLineParser, script_status
 from sim.world.camera import SR4000_INTRINSICS
 from sim.world.sensor.materials import NIR_REFLECTIVITY
 from sim.world.sensor.tof_model import TOF_PRESETS, ToFModel, ToFParams
@@ -182,4 +182,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script_status(main))

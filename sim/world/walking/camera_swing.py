@@ -17,7 +17,7 @@ import sys
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sim.command_line import OneLineParser, number_option
+from sim.command_line import OneLineParser, number_option, script_status
 from sim.world.camera import SR4000_INTRINSICS
 from sim.world.walking.gait import GAIT_PRESETS
 from sim.world.walking.simulation import RobotSimulation
@@ -92,4 +92,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script_status(main))

@@ -19,12 +19,13 @@ direction the largest impulse survived (bisection), for the worst and the best s
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
-from sim.command_line import POSITIVE_INTEGER, OneLineParser, number_option
+from sim.command_line import POSITIVE_INTEGER, OneLineParser, number_option, script_status
 from sim.world.walking.gait import GAIT_PRESETS, SOLE_HALF_WIDTH_M, GaitParams
 from sim.world.walking.simulation import RobotSimulation
 from sim.world.assembly import assemble, compile_world
@@ -154,4 +155,4 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(script_status(main))
