@@ -9,6 +9,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
+    python benchmarks/t2fuzzy_failures.py rivals  /tmp/t2f/seq/*          # rival second looks
     python benchmarks/t2fuzzy_failures.py check-time /tmp/t2f/seq/* --param NAME --values A B
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py flow-tiles /tmp/t2f/seq/off_pa_2009 272   # non-rigid
@@ -164,6 +165,66 @@ def summary(folders: list[Path], methods: list[str], stride: int,
               f"{1e3 * seconds / n_frames:.2f} ms/frame (CPU), {n_frames} frames of "
               f"{len(folders)} sequences")
         print("   " + ", ".join(f"{name} {count}" for name, count in statuses.most_common()))
+
+
+def rivals(folders: list[Path]) -> None:
+    """``t2fuzzy``'s second looks that pass the trust check but line the depth edges up worse
+    than its estimate, with the rule of docs/method.md, section 12, "Rivals" switched off
+    (``second_look_rivals=False``: every such estimate stands): how many, how many lie beyond
+    the check's offset limits of the estimate (those the rule fails), and how near the truth
+    each side of those is; and the second looks that replace the estimate from beyond the
+    limits. Near: within 2 deg and 4 px of the truth; far: off by more than 5 deg or 10 px."""
+    from collections import Counter
+
+    from stabilizer import Motion, Stabilizer
+    from stabilizer.verification import VerificationParams
+
+    params = VerificationParams(second_look_rivals=False)
+
+    def nearness(motion, truth) -> str:
+        error = (abs(float((motion[0] - truth[0] + 180.0) % 360.0 - 180.0)),
+                 abs(motion[1] - truth[1]), abs(motion[2] - truth[2]))
+        return ("far" if error[0] > 5.0 or max(error[1:]) > 10.0 else
+                "near" if error[0] <= 2.0 and max(error[1:]) <= 4.0 else "between")
+
+    n_frames = n_ok = n_worse = 0
+    worse_beyond, replaced_beyond = Counter(), Counter()
+    for folder in folders:
+        frames, references, truth, truth_ok = _frames(folder)
+        tracker, current = None, None
+        for index, frame in enumerate(frames):
+            if references[index] != current:
+                current = references[index]
+                tracker = Stabilizer(frames[current], "t2fuzzy", verification=params)
+            motion = tracker.estimate(frame)
+            n_frames += 1
+            if not (motion.ok and truth_ok[index]):
+                continue
+            n_ok += 1
+            found = motion.diagnostics
+            if found.get("second_look_failed") == "edges":
+                n_worse += 1
+                first, second = motion, Motion(*found["second_look"])
+                pair = worse_beyond
+            elif "second_look_from" in found:
+                first, second = Motion(*found["second_look_from"]), motion
+                pair = replaced_beyond
+            else:
+                continue
+            if params.beyond_offset(second, first):
+                pair[(nearness(first.as_tuple(), truth[index]),
+                      nearness(second.as_tuple(), truth[index]))] += 1
+
+    def listed(pairs: Counter) -> str:
+        return "; ".join(f"estimate {first}, second look {second}: {count}"
+                         for (first, second), count in sorted(pairs.items())) or "none"
+
+    print(f"t2fuzzy on {n_frames} frames of {len(folders)} sequences, the rule off: {n_ok} ok "
+          f"(with a valid truth); second looks that pass with worse edges {n_worse}, beyond the "
+          f"offset limits {sum(worse_beyond.values())} (the rule fails these)")
+    print(f"   those beyond the limits: {listed(worse_beyond)}")
+    print(f"second looks that replace the estimate from beyond the limits "
+          f"{sum(replaced_beyond.values())}: {listed(replaced_beyond)}")
 
 
 def overlap_climb_time(folders: list[Path], stride: int) -> None:
@@ -647,6 +708,8 @@ def main(argv: list[str] | None = None) -> int:
     swept.add_argument("--param", default="candidate_margin",
                        choices=["candidate_margin", "outside_margin", "ridge_margin",
                                 "null_margin", "full_resolution_travel_deg"])
+    rivalled = commands.add_parser("rivals", help="second looks that pass with worse edges")
+    rivalled.add_argument("folders", type=Path, nargs="+")
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
     isolated.add_argument("folders", type=Path, nargs="+")
     tiled = commands.add_parser("flow-tiles", help="how far one frame's true motion is from rigid")
@@ -695,6 +758,8 @@ def main(argv: list[str] | None = None) -> int:
         margins(sequences, args.methods, args.stride, args.values, args.param)
     elif args.command == "flow-tiles":
         flow_tiles(args.folder, args.frame, args.methods)
+    elif args.command == "rivals":
+        rivals(sequences)
     elif args.command == "stage6":
         stage6(sequences)
     elif args.command == "figures":

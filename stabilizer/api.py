@@ -147,7 +147,7 @@ class Stabilizer:
               < checked.diagnostics["verify_correlation"]):
             failed = "edges"  # the new estimate passes, but lines the depth edges up worse
             if (self._verifier.params.second_look_rivals
-                    and self._verifier.beyond_offset(again, checked)):
+                    and self._verifier.params.beyond_offset(again, checked)):
                 # Two motions beyond the offset limits of each other both pass: a rival.
                 return Motion.failed(UNVERIFIED, **dict(
                     checked.diagnostics, verify_failed="ambiguous",

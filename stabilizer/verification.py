@@ -215,6 +215,12 @@ class VerificationParams:
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
         check_flag("second_look_rivals", self.second_look_rivals)
 
+    def beyond_offset(self, motion: Motion, other: Motion) -> bool:
+        """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
+        return (abs(float(wrap_angle_deg(motion.angle_deg - other.angle_deg)))
+                > self.max_offset_deg
+                or math.hypot(motion.dx - other.dx, motion.dy - other.dy) > self.max_offset_px)
+
 
 def edge_image(image: np.ndarray, sigma_px: float,
                clip_factor: float) -> tuple[np.ndarray, np.ndarray]:
@@ -834,7 +840,8 @@ class Verifier:
         if current.candidate is None:
             current.candidate = self.candidate(current.half)
         candidate = current.candidate
-        if not (self.beyond_offset(candidate, optimum) or self.beyond_offset(candidate, motion)):
+        if not (params.beyond_offset(candidate, optimum)
+                or params.beyond_offset(candidate, motion)):
             return None
         if current.candidate_ends is None:
             ends = [self.local_optimum(current.half, candidate) or candidate]
@@ -846,7 +853,7 @@ class Verifier:
             current.candidate_ends = [[end, None] for end in ends]
         rivals = []
         for kept in current.candidate_ends:  # [end, its correlation once measured]
-            if self.beyond_offset(kept[0], motion):
+            if params.beyond_offset(kept[0], motion):
                 if kept[1] is None:
                     kept[1] = structure_correlation(*self._reference, *current.edges,
                                                     kept[0])[0]
@@ -864,12 +871,6 @@ class Verifier:
         return (abs(float(wrap_angle_deg(motion.angle_deg)))
                 > widest + self.params.max_offset_deg)
 
-    def beyond_offset(self, motion: Motion, other: Motion) -> bool:
-        """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
-        return (abs(float(wrap_angle_deg(motion.angle_deg - other.angle_deg)))
-                > self.params.max_offset_deg
-                or math.hypot(motion.dx - other.dx, motion.dy - other.dy)
-                > self.params.max_offset_px)
 
 
 #: How many verifiers :func:`shared_verifier` keeps, the most recently asked for.
