@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+import sim  # noqa: F401  (first: numpy and OpenCV on the SIMD paths of egostab's runs)
+
 import cv2
 import numpy as np
 

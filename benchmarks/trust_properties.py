@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 import sys
 
+import sim  # noqa: F401  (first: numpy and OpenCV on the SIMD paths of egostab's runs)
+
 import cv2
 import numpy as np
 
