@@ -116,11 +116,12 @@ def _frames(folder: Path):
 def _estimates(frames, references, method, verify, stride=1, clock=time.perf_counter,
                **params):
     """One Motion for every ``stride``-th frame, each against its reference; and the seconds
-    spent (on ``clock``)."""
+    spent (on ``clock``). ``verify``: True (the trust check's defaults), False (no check) or
+    the check's VerificationParams."""
     from stabilizer import Stabilizer
     from stabilizer.verification import VerificationParams
 
-    verification = VerificationParams() if verify else None
+    verification = VerificationParams() if verify is True else verify or None
     motions, seconds, tracker, current = [], 0.0, None, None
     for index in range(0, len(frames), stride):
         start = clock()
@@ -178,7 +179,7 @@ def rivals(folders: list[Path]) -> None:
     limits. Near: within 2 deg and 4 px of the truth; far: off by more than 5 deg or 10 px."""
     from collections import Counter
 
-    from stabilizer import Motion, Stabilizer
+    from stabilizer import Motion
     from stabilizer.verification import VerificationParams
 
     params = VerificationParams(second_look_rivals=False)
@@ -193,12 +194,8 @@ def rivals(folders: list[Path]) -> None:
     worse_beyond, replaced_beyond = Counter(), Counter()
     for folder in folders:
         frames, references, truth, truth_ok = _frames(folder)
-        tracker, current = None, None
-        for index, frame in enumerate(frames):
-            if references[index] != current:
-                current = references[index]
-                tracker = Stabilizer(frames[current], "t2fuzzy", verification=params)
-            motion = tracker.estimate(frame)
+        motions, _ = _estimates(frames, references, "t2fuzzy", params)
+        for index, motion in enumerate(motions):
             n_frames += 1
             if not (motion.ok and truth_ok[index]):
                 continue
