@@ -28,6 +28,15 @@ def test_rotation_matrix_is_the_2x2_part_of_opencvs_rotation():
         np.testing.assert_allclose(rotation_matrix(math.radians(angle)), opencv, atol=1e-12)
 
 
+def test_rotations_turn_about_the_centre_of_the_pixel_grid():
+    # Pixel centres are integers: the centre of a W x H grid is ((W - 1) / 2, (H - 1) / 2), so
+    # a half turn maps pixel (x, y) onto (W - 1 - x, H - 1 - y) exactly.
+    assert image_centre(SR4000_SHAPE) == (87.5, 71.5)
+    image = np.random.default_rng(0).integers(1, 256, SR4000_SHAPE, dtype=np.uint8)
+    np.testing.assert_array_equal(apply_motion(image, Motion(180.0, 0.0, 0.0)),
+                                  image[::-1, ::-1])
+
+
 def test_positive_angles_turn_counter_clockwise_as_displayed():
     # +x (right) turns toward -y (up on screen) for a small positive angle.
     turned = rotation_matrix(math.radians(10.0)) @ np.array([1.0, 0.0])

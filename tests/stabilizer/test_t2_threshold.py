@@ -15,6 +15,8 @@ def test_planted_outliers_are_cut_on_both_sides():
     assert result.fallback is None
     assert result.lower < 5.0 < result.upper
     assert result.value == pytest.approx(5.0, abs=0.05)
+    # The paper's Fig. 7: the rotation is the mean of the estimates between the thresholds.
+    assert result.value == values[result.inliers].mean()
     assert not result.inliers[np.isin(values, outliers)].any()
     assert result.inliers[np.isin(values, good)].mean() > 0.9
 

@@ -51,8 +51,9 @@ class Interval:
 def mean_interval(samples: Sequence[float], seed: int = BOOTSTRAP_SEED) -> Interval:
     """The mean of the finite ``samples`` and its 95% bootstrap interval.
 
-    NaN samples are left out (``n`` counts those kept). BCa is tried first; if it gives no
-    finite bounds (degenerate samples), the percentile interval is returned instead.
+    Samples that are not finite (NaN, infinite) are left out (``n`` counts those kept). BCa is
+    tried first; if it gives no finite bounds (degenerate samples), the percentile interval is
+    returned instead.
     """
     values = np.asarray(samples, dtype=float)
     values = values[np.isfinite(values)]

@@ -143,6 +143,11 @@ def far_out(reference: np.ndarray, current: np.ndarray) -> tuple:
     return (0.0, 1e308, 0.0)
 
 
+def far_below(reference: np.ndarray, current: np.ndarray) -> tuple:
+    """A shift beyond the bound on the negative side."""
+    return (0.0, 0.0, -1e7)
+
+
 def unwritable_failure(reference: np.ndarray, current: np.ndarray) -> Motion:
     """A failure whose status and diagnostics no JSON or UTF-8 file can take as they are."""
     return Motion.failed("bad\ud800name", big=10**5000, path="\udcff.png", count=3)

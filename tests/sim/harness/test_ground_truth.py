@@ -127,6 +127,26 @@ def test_occluded_points_are_dropped():
     with_check = ground_truth(reference, current)
     without_check = ground_truth(reference, current, occlusion_abs_m=1e9)
     assert with_check.n_points < without_check.n_points
+    # The tolerance is occlusion_abs_m + occlusion_rel * depth: either part alone can be wide.
+    wide_relative = ground_truth(reference, current, occlusion_abs_m=0.0, occlusion_rel=1e9)
+    assert wide_relative.n_points == without_check.n_points
+
+
+@pytest.mark.parametrize("step_m", [(0.026, 0.0), (-0.026, 0.0), (0.0, 0.025), (0.0, -0.025)])
+def test_points_carried_out_of_the_image_are_dropped(step_m):
+    # A step across a wall 3 m ahead shifts the image by about 1.9 px: the outermost row or
+    # column of the stride-2 grid lands in [W - 0.5, W + 0.5) or [H - 0.5, H + 0.5), beyond
+    # the last pixel (pixel j covers [j - 0.5, j + 0.5)).
+    wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
+    truth = ground_truth(*_frames(world=wall, current_pos=np.array([0.0, *step_m])))
+    assert truth.motion.angle_deg == 0.0 and 1.8 < math.hypot(truth.motion.dx,
+                                                               truth.motion.dy) < 2.0
+    rows, cols = np.mgrid[0:144:2, 0:176:2]
+    x, y = cols.ravel() + truth.motion.dx, rows.ravel() + truth.motion.dy
+    inside = (x >= -0.5) & (x < 175.5) & (y >= -0.5) & (y < 143.5)
+    assert truth.n_points == int(np.count_nonzero(inside))
+    np.testing.assert_allclose(truth.correspondences.target_px,
+                               np.column_stack((x[inside], y[inside])), atol=1e-3)
 
 
 def test_exact_depth_overrides_phase_wrapped_reported_depth():

@@ -103,6 +103,7 @@ def test_a_plugins_ok_passes_the_trust_check_of_the_built_in_methods(frames):
     ("huge_integer", "nan"),
     ("huger_integer", "nan"),
     ("far_out", "out_of_range"),
+    ("far_below", "out_of_range"),
     ("list_diagnostics", "wrong_type:diagnostics"),
     ("ExitsOnReference", "exception:SystemExit"),
     ("reported_failure", "no_structure"),

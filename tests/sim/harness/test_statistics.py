@@ -64,8 +64,8 @@ def test_fewer_than_two_samples_give_no_interval(samples, n, mean):
     assert not interval.excludes_zero()
 
 
-def test_nan_samples_are_left_out_and_pairs_need_both_sides():
-    interval = mean_interval([1.0, math.nan, 3.0, 2.0])
+def test_non_finite_samples_are_left_out_and_pairs_need_both_sides():
+    interval = mean_interval([1.0, math.nan, 3.0, math.inf, 2.0, -math.inf])
     assert interval.n == 3 and interval.mean == 2.0
     difference = paired_difference([1.0, math.nan, 3.0], [0.5, 1.0, math.nan])
     assert difference.n == 1 and difference.mean == 0.5

@@ -90,6 +90,17 @@ def test_sigma_law_has_the_documented_form_and_limits():
         ToFParams(noise_sigma_ref_m=0.003, noise_sigma_min_m=0.004)
 
 
+def test_wiggling_is_a_sinusoid_over_a_quarter_of_the_unambiguous_range():
+    # 4-phase sampling aliases the odd harmonics onto a period of U / 4 (docs/sensor.md, 4).
+    p = DEFAULT
+    quarter = p.unambiguous_range_m / 4.0
+    ranges = np.linspace(0.3, 5.0, 2000)
+    error = p.wiggle_error_m(ranges)
+    np.testing.assert_allclose(p.wiggle_error_m(ranges + quarter), error, atol=1e-12)
+    np.testing.assert_allclose(p.wiggle_error_m(ranges + quarter / 2.0), -error, atol=1e-12)
+    assert np.abs(error).max() == pytest.approx(p.wiggle_amplitude_m, rel=1e-3)
+
+
 @pytest.mark.parametrize("point", CALIBRATION_POINTS, ids=lambda p: p.name)
 def test_model_reproduces_the_published_noise_within_20_percent(point):
     assert model_sigma_m(DEFAULT, point) == pytest.approx(point.sigma_mid_m,
