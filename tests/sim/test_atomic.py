@@ -33,5 +33,6 @@ def test_stale_temporaries_are_removed_and_nothing_else(tmp_path):
             kept.write_text("left by a killed writer")  # no finally removes this one
             raise KeyboardInterrupt
     (tmp_path / "results.md").write_text("kept")
+    (tmp_path / "notes.tmp").write_text("a user's, not one atomic_path names")
     remove_stale_temporaries(tmp_path)
-    assert os.listdir(tmp_path) == ["results.md"]
+    assert sorted(os.listdir(tmp_path)) == ["notes.tmp", "results.md"]

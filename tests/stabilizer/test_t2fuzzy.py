@@ -14,8 +14,10 @@ from stabilizer.t2fuzzy import (
     FeatureParams,
     SegmentationParams,
     T2FuzzyEstimator,
+    FrameAnalysis,
     ThresholdParams,
     TranslationParams,
+    match_objects,
 )
 from stabilizer.t2fuzzy_refinements import Refinements, RotationSearch
 from stabilizer.testing import make_depth_scene, random_motion
@@ -59,6 +61,28 @@ def test_random_motions_of_synthetic_scenes_are_recovered():
     errors, within = _recovery()
     assert np.all(np.isfinite(errors))
     assert within >= 0.9
+
+
+def _objects(centres, areas):
+    """A FrameAnalysis of one object per cluster, of these centres (gray levels) and areas."""
+    n = len(centres)
+    return FrameAnalysis(np.array(centres, float), np.zeros((4, 4), np.uint8),
+                         np.arange(1, n + 1), np.array(areas, float), None, 1, True, None)
+
+
+def test_objects_pair_by_nearest_cluster_centre_then_by_area():
+    """docs/method.md, section 4: ranked by the gap of the cluster centres, ties by the log
+    ratio of the areas; one-to-one."""
+    reference = _objects([100.0, 60.0], [100.0, 100.0])
+    # The nearer centre wins over the equal area; at equal gaps, the nearer area wins.
+    assert match_objects(reference, _objects([104.0, 101.0], [100.0, 900.0]), 10.0) == [(0, 1)]
+    assert match_objects(reference, _objects([98.0, 102.0, 61.0], [900.0, 120.0, 50.0]),
+                         10.0) == [(1, 2), (0, 1)]
+
+
+def test_objects_whose_centres_differ_by_more_than_the_limit_stay_unmatched():
+    reference = _objects([100.0, 200.0], [100.0, 100.0])
+    assert match_objects(reference, _objects([103.0, 150.0], [100.0, 100.0]), 10.0) == [(0, 0)]
 
 
 @pytest.mark.parametrize("refinements", [DISC_ONLY, Refinements.off()])

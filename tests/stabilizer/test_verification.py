@@ -159,6 +159,17 @@ def test_an_estimate_away_from_the_optimum_fails():
     assert checked.diagnostics["verify_optimum"][0] == pytest.approx(TRUTH.angle_deg, abs=0.5)
 
 
+@pytest.mark.parametrize("shift", [(7.0, 0.0), (0.0, -7.0)])
+def test_an_estimate_shifted_away_from_the_optimum_fails(shift):
+    """The right angle, 7 px off: the optimum lies at the truth, farther than max_offset_px."""
+    wrong = Motion(TRUTH.angle_deg, TRUTH.dx + shift[0], TRUTH.dy + shift[1])
+    checked = Verifier(REFERENCE)(CURRENT, wrong)
+    assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "not_optimum"
+    assert checked.diagnostics["verify_offset_deg"] < VerificationParams().max_offset_deg
+    assert checked.diagnostics["verify_offset_px"] > VerificationParams().max_offset_px
+    np.testing.assert_allclose(checked.diagnostics["verify_optimum"], TRUTH.as_tuple(), atol=0.2)
+
+
 def test_a_half_turn_that_lines_up_a_symmetric_object_fails():
     """A box is point-symmetric: turned by 180 degrees more about its centre, it lines up as
     well as under the truth. An estimate beyond the searched angles must explain the frames

@@ -11,7 +11,7 @@ import pytest
 import sim.harness.report
 import sim.harness.runner
 from scenarios import SCENARIOS_DIR
-from sim.harness.runner import RunConfig, run
+from sim.harness.runner import ReferencePolicy, RunConfig, run
 from sim.world.sensor.sr4000 import SR4000
 from sim.world.walking import RobotSimulation
 from tests.sim.harness import plugin_methods
@@ -231,3 +231,13 @@ def test_scene_params_of_a_scenario_shape_the_walked_scene():
                    if model.body(i).name.startswith("wall"))
 
     assert walls_at_1_2_m(wide.model) >= 2 and walls_at_1_2_m(default.model) == 0
+
+
+@pytest.mark.parametrize("policy, references", [
+    ("cycle_start", [0, 0, 0, 3, 3, 3, 3, 7, 7, 7]),
+    ("previous", [0, 0, 1, 2, 3, 4, 5, 6, 7, 8]),
+    ("first", [0] * 10)])
+def test_each_policy_gives_the_references_docs_design_names(policy, references):
+    cycles = [0, 0, 0, 1, 1, 1, 1, 2, 2, 2]
+    chooser = ReferencePolicy(policy)
+    assert [chooser.reference_for(frame, cycle) for frame, cycle in enumerate(cycles)] == references

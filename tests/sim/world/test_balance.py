@@ -87,6 +87,18 @@ def test_a_2ns_push_is_survived_and_the_commanded_path_recovered(model, gait, di
     assert trial.recovered
 
 
+@pytest.mark.parametrize("fell, heading_deg, lateral_m, recovered", [
+    (False, 0.0, 0.0, True), (True, 0.0, 0.0, False),
+    (False, -HEADING_TOLERANCE_DEG, LATERAL_TOLERANCE_M, True),
+    (False, 1.01 * HEADING_TOLERANCE_DEG, 0.0, False),
+    (False, 0.0, -1.01 * LATERAL_TOLERANCE_M, False)])
+def test_recovered_means_standing_and_back_on_the_commanded_path(fell, heading_deg, lateral_m,
+                                                                 recovered):
+    trial = push_recovery.PushTrial(fell=fell, push_start_s=3.0, heading_error_deg=heading_deg,
+                                    lateral_offset_m=lateral_m)
+    assert trial.recovered is recovered
+
+
 @pytest.mark.parametrize("gait, direction, seed", [("paper_like", "forward", 1),
                                                    ("paper_like", "backward", 0)])
 def test_step_adjustment_recovers_3ns_pushes_that_topple_the_plain_controller(model, gait,
