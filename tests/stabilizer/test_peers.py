@@ -162,6 +162,24 @@ def test_featureless_valid_region_gives_a_status(method):
     assert not result.ok and result.status != "ok"
 
 
+@pytest.mark.parametrize("method, seeds, status", [
+    ("ecc", (0, 1), "low_correlation"), ("ecc", (4, 5), "low_correlation"),
+    ("fourier_mellin", (0, 1), "poor_overlap"), ("fourier_mellin", (4, 5), "low_response"),
+    ("sift", (0, 1), "too_few_matches"), ("sift", (4, 5), "too_few_inliers")])
+def test_frames_of_unrelated_scenes_fail_by_the_methods_own_criteria(method, seeds, status):
+    reference, current = (depth_to_disparity(make_depth_scene(seed)) for seed in seeds)
+    assert Stabilizer(reference, method, verification=None).estimate(current).status == status
+
+
+def test_sift_keeps_the_matches_that_pass_lowes_ratio_test():
+    reference = depth_to_disparity(make_depth_scene(0))
+    current = apply_motion(reference, Motion(5.0, 10.0, -7.0))
+    matches = [SiftEstimator(reference, ratio=ratio).estimate(current).diagnostics
+               for ratio in (0.75, 0.99)]
+    assert (matches[0]["n_matches"] < matches[1]["n_matches"]
+            < matches[1]["n_reference_keypoints"])
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_reference_is_analysed_once_and_reused(method):
     """One estimator serves many frames; it does not read the reference image again.

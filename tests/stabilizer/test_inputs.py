@@ -1,0 +1,39 @@
+"""Input conversion and checks (stabilizer.inputs): metric depth to the 8-bit disparity-like
+image of docs/method.md, section 0."""
+
+import numpy as np
+import pytest
+
+from stabilizer.inputs import DEFAULT_FAR_M, DEFAULT_NEAR_M, depth_to_disparity
+
+
+def test_disparity_falls_as_one_over_depth_from_255_at_the_near_limit():
+    depth = np.array([[DEFAULT_NEAR_M, 1.0, 2.0, 3.0, DEFAULT_FAR_M]])
+    expected = np.rint(255.0 * DEFAULT_NEAR_M / depth[0]).astype(np.uint8)
+    np.testing.assert_array_equal(depth_to_disparity(depth)[0], expected)
+    assert depth_to_disparity(depth)[0, 0] == 255
+    # Rounded to the nearest level: 255 * 0.5 / 1.9 = 67.1, / 1.7 = 75.0, / 1.65 = 77.3.
+    np.testing.assert_array_equal(depth_to_disparity(np.array([[1.9, 1.7, 1.65]])),
+                                  [[67, 75, 77]])
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, np.nan, np.inf, DEFAULT_NEAR_M * 0.99,
+                                   DEFAULT_FAR_M * 1.01])
+def test_no_measurement_and_depths_outside_the_limits_are_invalid(value):
+    depth = np.full((2, 3), 1.0)
+    depth[1, 2] = value
+    disparity = depth_to_disparity(depth)
+    assert disparity[1, 2] == 0 and np.all(disparity.ravel()[:5] == 128)
+
+
+def test_a_far_limit_beyond_255_near_limits_keeps_its_depths_valid_at_level_1():
+    disparity = depth_to_disparity(np.array([[400.0, 1000.0]]), far_m=1000.0)
+    np.testing.assert_array_equal(disparity, [[1, 1]])
+
+
+@pytest.mark.parametrize("depth, near_m, far_m, match", [
+    (np.ones(3), 0.5, 10.0, "2-D"), (np.ones((2, 2), np.uint16), 0.5, 10.0, "float"),
+    (np.ones((2, 2)), 0.0, 10.0, "near_m"), (np.ones((2, 2)), 2.0, 1.0, "near_m")])
+def test_bad_depth_or_limits_are_value_errors(depth, near_m, far_m, match):
+    with pytest.raises(ValueError, match=match):
+        depth_to_disparity(depth, near_m, far_m)
