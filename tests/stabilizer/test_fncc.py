@@ -161,6 +161,16 @@ def test_rotated_template_finds_the_shift_in_the_motion_convention(motion):
     assert wrong_angle.height < whole.height
 
 
+def test_rotated_templates_mask_the_invalid_pixels_they_carry():
+    reference = _textured(seed=5) + 1.0
+    reference[70:74, 100:104] = 0.0  # a hole of 16 pixels in the template, off its centre
+    template = RotatedTemplate(reference, margin=44)
+    _, upright = template.template(0.0)
+    np.testing.assert_array_equal(upright > 0, reference[44:-44, 44:-44] > 0)
+    _, turned = template.template(12.0)
+    assert turned is not None and 12 <= np.count_nonzero(turned == 0) <= 24
+
+
 def test_a_non_finite_previous_shift_searches_the_whole_range():
     # A match that found no peak has a NaN shift; a search "near" it is a search everywhere.
     reference = _textured(seed=5)
@@ -250,6 +260,11 @@ def test_surface_peak_refines_inside_and_flags_the_edge():
     assert not match.at_border
     edge = -((columns - 5.0) ** 2) - rows ** 2
     assert surface_peak(edge, 3).at_border and surface_peak(edge, 3).x == 3.0
+    # A neighbour that cannot be scored (-inf) is an edge too: the peak is not refined there.
+    unscored = inside.copy()
+    unscored[3, 3] = -np.inf  # left of the peak, at shift (1, 0)
+    match = surface_peak(unscored, 3)
+    assert match.at_border and match.x == 1.0 and match.y == pytest.approx(-0.4)
 
 
 @pytest.mark.parametrize("args", [((144, 176), 0, 0.3), ((144, 176), 144, 0.3),
