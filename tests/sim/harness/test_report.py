@@ -12,7 +12,8 @@ import pytest
 from sim.harness.ground_truth import GroundTruth
 from sim.harness.provenance import git_state, package_versions
 from sim.harness.report import (MAX_LISTED_LARGE_ERRORS, MEAN_ERROR_COLUMNS, aggregate_runs,
-                                failures_jsonl_text, large_errors_cell, large_errors_section,
+                                failures_jsonl_text, format_number, large_errors_cell,
+                                large_errors_section,
                                 markdown_table, read_metrics, score_rows, table_one,
                                 terminal_summary, write_run_outputs)
 from dataclasses import replace
@@ -366,6 +367,12 @@ def test_equal_errors_still_plot(run, tmp_path):
                 for i, record in enumerate(records)]
     path = plot_error_histograms(tmp_path / "h.png", constant, [records[0].method])
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_figures_without_a_value_read_n_a_in_the_tables():
+    # A method that scored no frame has NaN means; an error beyond float range, inf.
+    assert [format_number(value) for value in (None, math.nan, math.inf, -math.inf)] == ["n/a"] * 4
+    assert format_number(1.234) == "1.23" and format_number(2.0, digits=3) == "2.000"
 
 
 def test_a_table_cell_from_another_program_stays_one_cell():
