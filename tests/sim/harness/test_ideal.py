@@ -42,6 +42,10 @@ def test_paper_cycle_has_the_papers_magnitudes():
     assert angle.max() == pytest.approx(12.0, abs=0.05) and angle.min() == pytest.approx(-12.0, abs=0.05)
     assert dx.max() == pytest.approx(40.0, abs=0.1) and dx.min() == pytest.approx(-40.0, abs=0.1)
     assert dy.min() == pytest.approx(2.0, abs=0.05) and dy.max() == pytest.approx(32.0, abs=0.05)
+    # The camera bobs once per step, twice per cycle; it turns and sways once per cycle.
+    def peaks(values):
+        return int(np.sum((values > np.roll(values, 1)) & (values >= np.roll(values, -1))))
+    assert (peaks(angle), peaks(dx), peaks(dy)) == (1, 1, 2)
 
 
 def test_unknown_trajectory_is_a_clear_error(tmp_path):
@@ -306,6 +310,12 @@ def test_an_ideal_trajectory_skips_frames_without_truth_only(tmp_path):
     path = _frames_csv(tmp_path / "frames.csv", "0,ok,0,0,0\n1,no_overlap,nan,nan,nan\n"
                                                 "2,ok,1,2,3\n")
     assert [m.as_tuple() for m in trajectory_from_run(path)] == [(0, 0, 0), (1, 2, 3)]
+
+
+def test_an_ideal_trajectory_is_replayed_in_frame_order_whatever_the_rows_order(tmp_path):
+    path = _frames_csv(tmp_path / "frames.csv", "2,ok,1,2,3\n0,ok,0,0,0\n1,ok,4,5,6\n")
+    assert [m.as_tuple() for m in trajectory_from_run(path)] == [(0, 0, 0), (4, 5, 6),
+                                                                 (1, 2, 3)]
 
 
 @pytest.mark.parametrize("rows, method_column, words", [
