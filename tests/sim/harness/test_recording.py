@@ -12,8 +12,10 @@ import rerun as rr
 from rerun.chunk import RrdReader
 from scipy.spatial.transform import Rotation
 
-from sim.harness.ground_truth import ground_truth
-from sim.harness.recording import RunRecorder, ellipse_outline, label_colours
+from sim.harness.ground_truth import ground_truth, pixel_rays
+from sim.harness.recording import (POINT_CLOUD_STRIDE, RunRecorder, depth_millimetres,
+                                   depth_points_world, ellipse_outline, label_colours)
+from sim.world.camera import SR4000_INTRINSICS
 from stabilizer.motion import Motion, compensate
 from tests.sim.harness.scene_frames import box_world, camera_matrix, render_frame
 
@@ -171,6 +173,26 @@ def test_ellipse_outline_follows_the_image_angle_convention():
     # The point of the outline farthest from the centre lies along 30 deg below +x.
     far = tilted[np.argmax(np.hypot(tilted[:, 0], tilted[:, 1]))]
     assert np.degrees(np.arctan2(far[1], far[0])) % 180 == pytest.approx(30.0, abs=4.0)
+    # Every point lies on the ellipse: in the frame of its axes, (u / 8)^2 + (v / 3)^2 = 1.
+    turn = np.radians(30.0)
+    u = tilted[:, 0] * np.cos(turn) + tilted[:, 1] * np.sin(turn)
+    v = -tilted[:, 0] * np.sin(turn) + tilted[:, 1] * np.cos(turn)
+    np.testing.assert_allclose((u / 8.0) ** 2 + (v / 3.0) ** 2, 1.0, atol=1e-9)
+
+
+def test_depth_is_logged_in_whole_millimetres_with_no_measurement_as_0():
+    depth = np.array([[np.nan, np.inf, 0.0, 1.2346, 70.0]])
+    np.testing.assert_array_equal(depth_millimetres(depth), [[0, 0, 0, 1235, 65535]])
+
+
+def test_depth_points_are_the_valid_pixels_only():
+    frame = _frames()[0]
+    valid = frame.valid.copy()
+    valid[:, :88] = False  # the left half measured nothing, whatever its depth says
+    rows, cols, _ = pixel_rays(SR4000_INTRINSICS, POINT_CLOUD_STRIDE)
+    kept = valid[rows, cols] & (frame.depth_m[rows, cols] > 0)
+    cloud = depth_points_world(dataclasses.replace(frame, valid=valid), SR4000_INTRINSICS)
+    assert 0 < len(cloud) == np.count_nonzero(kept) < np.count_nonzero(frame.valid[rows, cols])
 
 
 def test_label_colours_start_with_unlabelled_black():
