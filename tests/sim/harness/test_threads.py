@@ -51,10 +51,11 @@ def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ig
     assert out == ["1", "1", "1", "True", "True"]
 
 
-def test_a_worker_count_given_is_kept_and_checked():
+@pytest.mark.parametrize("workers", [0, -1, True, 2.0, "2"])
+def test_a_worker_count_given_is_kept_and_checked(workers):
     assert worker_count(3, wanted=1) == 3
     with pytest.raises(ValueError, match=r"workers \S+: accepted: an integer from 1 to \d+"):
-        worker_count(0, wanted=2)
+        worker_count(workers, wanted=2)
 
 
 def test_local_workers_are_at_most_a_few_per_core(monkeypatch):
