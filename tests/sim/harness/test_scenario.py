@@ -226,6 +226,20 @@ def test_bad_files_name_the_file_the_key_and_what_is_allowed(tmp_path, text, key
     assert allowed in message.split("allowed:")[1] or allowed in message
 
 
+@pytest.mark.parametrize("command, refused", [
+    ("speed = 0.12", None), ("speed = 0.121", "0 to 0.120 m/s"),
+    ("yaw_rate = -24.0", None), ("yaw_rate = 24.1", "at most +-24.0 deg/s")])
+def test_commands_are_limited_to_the_gaits_largest_step_each_step_period(tmp_path, command,
+                                                                          refused):
+    # The default gait: steps of at most 0.06 m and 12 deg every 0.5 s.
+    path = write(tmp_path, f'scene = "lab"\n[[commands]]\nt = 0.0\n{command}\n')
+    if refused is None:
+        load_scenario(path)
+        return
+    with pytest.raises(ScenarioError, match=refused.replace("+", r"\+")):
+        load_scenario(path)
+
+
 def test_names_resolve_to_shipped_files_and_unknown_names_list_them():
     assert resolve_scenario_path("lab_clutter") == SCENARIOS_DIR / "lab_clutter.toml"
     with pytest.raises(FileNotFoundError, match="corridor_straight"):

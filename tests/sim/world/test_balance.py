@@ -10,7 +10,7 @@ import pytest
 from sim.world.humanoid import TORSO_BODY_NAME
 from sim.world.walking import GAIT_PRESETS, RobotSimulation
 from sim.world.walking.counterbalance import Counterbalance
-from sim.world.walking.footsteps import FootstepPlanner, Pose2D
+from sim.world.walking.footsteps import LEFT, RIGHT, FootstepPlanner, Pose2D
 from sim.world.walking import push_recovery
 from sim.world.walking.push_recovery import (DIRECTIONS_DEG, HEADING_TOLERANCE_DEG,
                                              LATERAL_TOLERANCE_M, push_trial)
@@ -246,6 +246,15 @@ def test_walks_at_0_2_mps_without_falling(model, gait):
     sim.run(1.5)
     assert sim.fall is None
     assert sim.torso_pose()[0][0] - start[0] > 0.8          # 0.2 m/s for 6 s, minus start-up
+
+
+@pytest.mark.parametrize("turn_rad, lead", [(0.0, LEFT), (0.1, LEFT), (-0.1, RIGHT)])
+def test_the_first_step_from_standing_leads_with_the_foot_on_the_side_of_the_turn(turn_rad,
+                                                                                 lead):
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0)
+    planner.set_command(0.05, turn_rad, 0.0)
+    planner.update(0.0, 3.0)
+    assert planner.current_step.swing_side == lead
 
 
 def test_planner_moves_the_step_under_way_and_returns_to_the_path():
