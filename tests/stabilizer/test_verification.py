@@ -23,7 +23,7 @@ from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (UNVERIFIED, VerificationParams, Verifier, _half_resolution,
                                      _median, depth_disagreement, disparity_range, edge_image,
-                                     noise_level, shared_verifier)
+                                     noise_level, shared_verifier, structure_correlation)
 from tests.stabilizer.walking_frames import walking_frames
 
 METHODS = available_methods()
@@ -533,6 +533,16 @@ def test_a_shared_verifier_keeps_its_own_copy_of_the_reference():
     reference[:] = 0  # the caller reuses its array
     assert shared_verifier(scene(2, SR4000_SHAPE)) is verifier
     assert verifier(CURRENT, TRUTH) == untouched
+
+
+def test_edges_correlate_as_a_cosine_and_minus_1_where_no_edge_is_measured_in_both():
+    params = VerificationParams()
+    edges = edge_image(REFERENCE, params.sigma_px, params.clip_factor)
+    assert structure_correlation(*edges, *edges) == (pytest.approx(1.0), 1.0)
+    negated = (-edges[0], edges[1])
+    assert structure_correlation(*edges, *negated)[0] == pytest.approx(-1.0)
+    flat = edge_image(np.full_like(REFERENCE, 90), params.sigma_px, params.clip_factor)
+    assert not flat[0].any() and structure_correlation(*edges, *flat) == (-1.0, 1.0)
 
 
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
