@@ -545,6 +545,14 @@ def test_edges_correlate_as_a_cosine_and_minus_1_where_no_edge_is_measured_in_bo
     assert not flat[0].any() and structure_correlation(*edges, *flat) == (-1.0, 1.0)
 
 
+def test_noise_level_leaves_out_pixels_beside_unmeasured_ones():
+    # Every other column unmeasured over most of the frame: there, the 3 x 3 median of a
+    # measured pixel is 0, a residual of 100 levels that is no noise.
+    striped = np.full((144, 176), 100, np.uint8)
+    striped[:, 20:160:2] = 0
+    assert noise_level(striped) == 0.0
+
+
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
     """The fast path (uint8 filtered straight to float32, the median by partition) gives the
     documented edge image: cv2.GaussianBlur of the float frame and of its valid mask, and
