@@ -142,6 +142,30 @@ def test_a_climb_that_finds_no_peak_is_unconverged():
     assert not converged and abs(angle) <= 2 * 1.5 * 1.5 + 1e-9
 
 
+def test_a_climb_whose_last_step_reaches_the_peak_is_converged():
+    """Cut off by ``max_steps`` right at the peak (one step of 1.5 deg from 4.5 to 6 deg, the
+    truth 6.2), the climb still reports a local maximum; one step short of it, none."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    template = RotatedTemplate(smoothed, 44)
+    search = RotationSearch(template, half_resolution_template(smoothed, 44), Refinements())
+    current = _smoothed(apply_motion(reference, Motion(6.2, 5.0, -3.0)))
+    for start, converged in ((4.5, True), (3.0, False)):
+        angle, _, flag = search._climb(template, current, start, template.match(current, start),
+                                       max_steps=1)
+        assert flag is converged and abs(angle - start) <= 1.5 * 1.5 + 1e-9  # a step, half more
+
+
+def test_the_candidates_are_the_means_of_the_largest_groups_of_angles():
+    """Groups split at gaps wider than two climbing steps (3 deg), largest first."""
+    reference = _scene()
+    smoothed = _smoothed(reference)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(search_candidates=2))
+    means = search._group_means(np.array([9.0, 1.0, 5.0, 1.1, 9.1, 1.2]))
+    assert means == [pytest.approx(1.1), pytest.approx(9.05)]
+
+
 def test_the_search_stays_within_the_rotation_range():
     """Candidates beyond ``max_rotation_deg`` are not scored, and the climb stops at it."""
     reference = _scene()
