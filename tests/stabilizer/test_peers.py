@@ -28,7 +28,8 @@ import pytest
 
 from stabilizer import Motion, Stabilizer, apply_motion, depth_to_disparity, estimate
 from stabilizer.motion import wrap_angle_deg
-from stabilizer.peers.preparation import FramePreparation, clipped, robust_value_range
+from stabilizer.peers.preparation import (FramePreparation, clipped, robust_value_range,
+                                          valid_interior)
 from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator, edge_normals
@@ -142,10 +143,13 @@ def test_signs_follow_the_motion_convention(method, truth):
     ("invalid", "current", "empty_current"),
     ("flat", "reference", "flat_reference"),
     ("invalid", "reference", "empty_reference"),
+    ("sparse", "current", "empty_current"),
 ])
 def test_degenerate_frames_give_a_status_not_an_exception(method, frame, role, status):
     scene = _disparity(1)
     degenerate = np.full(SR4000_SHAPE, 90 if frame == "flat" else 0, np.uint8)
+    if frame == "sparse":  # 63 measured pixels of varied depth: fewer than MIN_VALID_PIXELS
+        degenerate[40:47, 60:69] = np.arange(63, dtype=np.uint8).reshape(7, 9) + 100
     reference, current = (scene, degenerate) if role == "current" else (degenerate, scene)
     result = ESTIMATORS[method](reference).estimate(current)
     assert result.status == status
@@ -258,6 +262,16 @@ def test_phase_wrapped_columns_do_not_break_registration(method):
             angle_error, shift_error = _errors(result, truth)
             accurate += angle_error <= ACCURATE_DEG and shift_error <= ACCURATE_PX
     assert accurate >= WRAPPED_COLUMNS_ACCURATE[method]
+
+
+def test_the_valid_interior_keeps_the_pixels_a_margin_away_from_an_invalid_one():
+    image = np.full(SR4000_SHAPE, 90, np.uint8)
+    assert (valid_interior(image, 3) == 255).all()  # the image border is no invalid pixel
+    image[72, 88] = 0
+    interior = valid_interior(image, 3)
+    assert [int(interior[72, 88 + d]) for d in range(6)] == [0, 0, 0, 0, 255, 255]
+    assert [int(interior[72 - d, 88]) for d in range(6)] == [0, 0, 0, 0, 255, 255]
+    assert interior[74, 90] == 0 and interior[75, 91] == 255  # 2.8 and 4.2 px away
 
 
 def test_robust_value_range_ignores_a_bright_minority_and_keeps_a_noise_floor():
