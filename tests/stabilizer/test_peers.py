@@ -169,7 +169,8 @@ def test_featureless_valid_region_gives_a_status(method):
 @pytest.mark.parametrize("method, seeds, status", [
     ("ecc", (0, 1), "low_correlation"), ("ecc", (4, 5), "low_correlation"),
     ("fourier_mellin", (0, 1), "poor_overlap"), ("fourier_mellin", (4, 5), "low_response"),
-    ("sift", (0, 1), "too_few_matches"), ("sift", (4, 5), "too_few_inliers")])
+    ("sift", (0, 1), "too_few_matches"), ("sift", (4, 5), "too_few_inliers"),
+    ("icp", (0, 1), "poor_fit"), ("icp", (4, 5), "poor_fit")])
 def test_frames_of_unrelated_scenes_fail_by_the_methods_own_criteria(method, seeds, status):
     reference, current = (depth_to_disparity(make_depth_scene(seed)) for seed in seeds)
     assert Stabilizer(reference, method, verification=None).estimate(current).status == status
@@ -344,6 +345,46 @@ def test_icp_gives_no_motion_on_identical_frames_of_64_to_240_px():
         frame = _disparity(int(rng.integers(2**31)), shape=shape,
                            n_objects=int(rng.integers(2, 7)), floor=bool(rng.integers(2)))
         _assert_icp_still(IcpEstimator(frame).estimate(frame.copy()), f"case {case} {shape}")
+
+
+def test_icp_is_not_pulled_by_structure_that_entered_the_view():
+    """Two near objects in the current frame only (Zhang 1994): the gate, shrinking with the
+    matches' typical distance, stops their edges pulling once the fit has locked on."""
+    rng = np.random.default_rng(3)
+    errors = []
+    for seed in range(12):
+        reference = _disparity(seed)
+        truth = random_motion(rng)
+        current = apply_motion(reference, truth).copy()
+        cv2.rectangle(current, (10, 10), (60, 50), 240, -1)
+        cv2.circle(current, (140, 110), 20, 230, -1)
+        found = IcpEstimator(reference).estimate(current)
+        assert found.ok, (seed, found.status)
+        errors.append(np.abs(np.subtract(found.as_tuple(), truth.as_tuple())).max())
+    assert max(errors) < 0.6
+
+
+def test_icp_edge_points_are_subsampled_evenly_over_the_frame():
+    reference = _disparity(1)
+    icp = IcpEstimator(reference)
+    every, some = icp._edge_points(reference, None), icp._edge_points(reference, 100)
+    assert len(some) == 100 < len(every)
+    # Rows come in order: an even subsample spans them all, the first 100 only the top.
+    assert some[:, 1].min() - every[:, 1].min() <= 2 and every[:, 1].max() - some[:, 1].max() <= 2
+
+
+def test_icp_without_enough_edges_says_so():
+    reference = _disparity(1)
+    speck = np.full(SR4000_SHAPE, 90, np.uint8)
+    speck[70:73, 80:83] = 200  # a few edge pixels, fewer than min_points
+    assert IcpEstimator(reference).estimate(speck).status == "too_few_edge_points"
+
+
+def test_trimmed_icp_keeps_the_closest_share_of_the_matches():
+    reference = _disparity(1)
+    current = apply_motion(reference, Motion(3.0, 4.0, -2.0))
+    trimmed = IcpEstimator(reference, overlap=0.5).estimate(current).diagnostics
+    assert trimmed["n_correspondences"] <= math.ceil(0.5 * trimmed["n_points"])
 
 
 def test_icp_point_to_point_still_recovers_random_motions():
