@@ -267,6 +267,9 @@ def test_a_rough_floor_has_the_requested_slope_and_bumps(name):
     assert bumps.heights.max() == 1.0 and bumps.heights.min() == 0.0
     near_start = np.hypot(*(grid - scene.start_xy).transpose(2, 0, 1)) < START_FLAT_RADIUS_M
     assert np.all(bumps.heights[near_start] == 0.0)
+    # The field fades to 0 at its edges: it meets the plane without a step.
+    edges = np.concatenate((bumps.heights[[0, -1], :].ravel(), bumps.heights[:, [0, -1]].ravel()))
+    assert np.all(edges == 0.0)
 
 
 def test_the_building_stands_on_the_sloped_floor_and_keeps_its_layout():
