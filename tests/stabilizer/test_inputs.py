@@ -26,7 +26,8 @@ def test_no_measurement_and_depths_outside_the_limits_are_invalid(value):
     assert disparity[1, 2] == 0 and np.all(disparity.ravel()[:5] == 128)
 
 
-def test_a_far_limit_beyond_255_near_limits_keeps_its_depths_valid_at_level_1():
+def test_depths_beyond_255_near_limits_stay_valid_at_level_1():
+    # 255 * 0.5 / 400 rounds to 0, which means no measurement: a valid depth keeps level 1.
     disparity = depth_to_disparity(np.array([[400.0, 1000.0]]), far_m=1000.0)
     np.testing.assert_array_equal(disparity, [[1, 1]])
 

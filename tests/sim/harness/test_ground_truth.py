@@ -139,8 +139,8 @@ def test_points_carried_out_of_the_image_are_dropped(step_m):
     # the last pixel (pixel j covers [j - 0.5, j + 0.5)).
     wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
     truth = ground_truth(*_frames(world=wall, current_pos=np.array([0.0, *step_m])))
-    assert truth.motion.angle_deg == 0.0 and 1.8 < math.hypot(truth.motion.dx,
-                                                               truth.motion.dy) < 2.0
+    assert truth.motion.angle_deg == pytest.approx(0.0, abs=1e-9)
+    assert 1.8 < math.hypot(truth.motion.dx, truth.motion.dy) < 2.0
     rows, cols = np.mgrid[0:144:2, 0:176:2]
     x, y = cols.ravel() + truth.motion.dx, rows.ravel() + truth.motion.dy
     inside = (x >= -0.5) & (x < 175.5) & (y >= -0.5) & (y < 143.5)

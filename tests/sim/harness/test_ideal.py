@@ -42,9 +42,11 @@ def test_paper_cycle_has_the_papers_magnitudes():
     assert angle.max() == pytest.approx(12.0, abs=0.05) and angle.min() == pytest.approx(-12.0, abs=0.05)
     assert dx.max() == pytest.approx(40.0, abs=0.1) and dx.min() == pytest.approx(-40.0, abs=0.1)
     assert dy.min() == pytest.approx(2.0, abs=0.05) and dy.max() == pytest.approx(32.0, abs=0.05)
-    # The camera bobs once per step, twice per cycle; it turns and sways once per cycle.
+
     def peaks(values):
         return int(np.sum((values > np.roll(values, 1)) & (values >= np.roll(values, -1))))
+
+    # The camera bobs once per step, twice per cycle; it turns and sways once per cycle.
     assert (peaks(angle), peaks(dx), peaks(dy)) == (1, 1, 2)
 
 
