@@ -2,18 +2,22 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from scenarios import SCENARIOS_DIR
 from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, record
 from sim.harness.scenario import load_scenario
 from sim.harness.interrupts import Interrupted
-from sim.harness.sequence import FORMAT, TRUTH_COLUMNS, SequenceWriter, load_sequence
+from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M, FORMAT, TRUTH_COLUMNS,
+                                  SequenceWriter, encode_frame, load_sequence)
 from sim.harness.validation import FileValueError
+from sim.world.camera import Frame
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 N_FRAMES = 5
@@ -50,6 +54,27 @@ def test_a_recorded_sequence_reads_back_the_frames_and_truth_it_was_made_of(sequ
     assert lines[0].startswith("#") and len(lines) == N_FRAMES + 1
     quaternion = np.array([float(v) for v in lines[1].split()[4:]])
     assert len(lines[1].split()) == 8 and abs(np.linalg.norm(quaternion) - 1) < 1e-12
+    # The TUM pose is the optical frame's (x right, y down, z forward): MuJoCo's camera (x
+    # right, y up, looking along -z) turned half a turn about its x axis.
+    optical = Rotation.from_quat(quaternion).as_matrix()
+    camera = np.asarray(sequence.rows[0].cam_mat)
+    np.testing.assert_allclose(optical, camera * [1.0, -1.0, -1.0], atol=1e-12)
+
+
+def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0():
+    depth = np.full((2, 3), 2.0, np.float32)
+    exact = depth.copy()
+    exact[0, 0] = 50.0  # the render's no-surface depth (its far clip)
+    frame = Frame(index=0, time_s=0.0, depth_m=depth, valid=depth > 0,
+                  disparity8=np.zeros((2, 3), np.uint8), cam_pos=np.zeros(3),
+                  cam_mat=np.eye(3), true_depth_m=exact)
+    encoded = encode_frame(frame, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
+    assert encoded.exact[0, 0] == 0 and np.all(encoded.exact.ravel()[1:] == 4000)
+    assert np.all(encoded.depth == 20000)
+    far = dataclasses.replace(frame, depth_m=np.full((2, 3), 7.0, np.float32))
+    with pytest.raises(ValueError, match=r"frame 0's reported depth reaches 7.00 m; a sequence "
+                                         r"stores at most 6.5535 m"):
+        encode_frame(far, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
 
 
 def _broken_copy(sequence_dir, tmp_path, damage):
@@ -298,8 +323,6 @@ def test_a_folder_of_other_files_named_as_a_sequences_is_refused_and_kept(tmp_pa
 
 
 def test_a_sensor_without_range_limit_is_stored_in_the_coarser_unit(tmp_path):
-    from sim.harness.sequence import EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M
-
     header = record(RecordConfig(scenario="noiseless_sensor", out_dir=str(tmp_path / "s"),
                                  max_frames=2))
     assert header["depth_unit_m"] == EXACT_DEPTH_UNIT_M  # it sees the corridor's far room
