@@ -279,6 +279,13 @@ def test_a_method_given_twice_is_refused(capsys):
     assert "sift given more than once" in capsys.readouterr().err
 
 
+def test_all_among_other_methods_is_refused(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--methods", "all,ecc", "--max-frames", "2"])
+    assert exit_info.value.code == 2
+    assert "'all' among other methods; accepted: 'all' alone" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("command", [
     ["score", "no_sequence", "--estimates", "a=x.csv", "--estimates", "a=y.csv"],
     ["suite", str(SCENARIOS_DIR / "suites" / "heldout.toml"),
