@@ -604,22 +604,22 @@ def test_a_row_with_more_cells_than_the_header_is_refused_unless_they_are_empty(
                                                                                 capsys):
     path = tmp_path / "extra.csv"
     rows = [f"{frame},0,0,0" for frame in range(N_FRAMES)]
-    path.write_text("frame,angle_deg,dx,dy\n" + "\n".join(rows[:2] + ["2,0,1,5,0"] + rows[3:]))
-    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
-                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+
+    def scored(lines: list[str]) -> int:
+        path.write_text("frame,angle_deg,dx,dy\n" + "\n".join(lines) + "\n")
+        return main(["score", str(folders / "sequence"), "--estimates", f"extra={path}",
+                     "--out", str(tmp_path / "out"), "--quiet", "--no-record"])
+
+    assert scored(rows[:2] + ["2,0,1,5,0"] + rows[3:]) == 2
     assert capsys.readouterr().err.strip() == (
         f"egostab score: error: {path}:4: row: has 5 cells, the header 4; allowed: one cell per "
         "column of the header (numbers take a decimal point: a decimal comma splits one in two)")
     # Quoted, the decimal comma keeps the cells in line, and the value is still no number.
-    path.write_text("frame,angle_deg,dx,dy\n" + "\n".join(rows[:2] + ['2,0,"1,5",0'] + rows[3:]))
-    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
-                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 2
+    assert scored(rows[:2] + ['2,0,"1,5",0'] + rows[3:]) == 2
     assert capsys.readouterr().err.strip() == (
         f"egostab score: error: {path}:4: dx: '1,5' is not a number; allowed: a decimal number "
         "such as -1.5 or 2e-3")
-    path.write_text("frame,angle_deg,dx,dy\n" + "".join(f"{row},,\n" for row in rows))
-    assert main(["score", str(folders / "sequence"), "--estimates", f"extra={path}", "--out",
-                 str(tmp_path / "out"), "--quiet", "--no-record"]) == 0
+    assert scored([f"{row},," for row in rows]) == 0
 
 
 def test_estimates_read_from_a_pipe_are_scored(folders, tmp_path):
