@@ -143,9 +143,15 @@ def far_out(reference: np.ndarray, current: np.ndarray) -> tuple:
     return (0.0, 1e308, 0.0)
 
 
+def at_the_bound(reference: np.ndarray, current: np.ndarray) -> tuple:
+    """Shifts right at the documented bound, +-1,000,000: still estimates."""
+    return (0.0, 1e6, -1e6)
+
+
 def far_below(reference: np.ndarray, current: np.ndarray) -> tuple:
-    """A shift beyond the bound on the negative side."""
-    return (0.0, 0.0, -1e7)
+    """A shift just beyond the documented bound (docs/plugins.md: +-1,000,000) on the
+    negative side."""
+    return (0.0, 0.0, -1_000_001.0)
 
 
 def unwritable_failure(reference: np.ndarray, current: np.ndarray) -> Motion:

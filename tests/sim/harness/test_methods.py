@@ -114,6 +114,13 @@ def test_a_misbehaving_method_fails_the_frame_with_the_reason(frames, name, stat
     assert all(math.isnan(value) for value in motion.as_tuple())
 
 
+def test_an_estimate_right_at_the_bound_is_an_estimate_not_out_of_range(frames):
+    motion = scored(f"{HELPERS}:at_the_bound", frames)
+    # The trust check then finds no overlap: no frame shifted so far lines up.
+    assert motion.status == "unverified"
+    assert motion.diagnostics["unverified_motion"] == (0.0, 1e6, -1e6)
+
+
 @pytest.mark.parametrize("name", ["writes_its_input", "unwrites_its_input",
                                   "ZeroesItsReference"])
 def test_a_method_cannot_change_the_frames_the_others_see(frames, name):

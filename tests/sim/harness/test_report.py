@@ -219,7 +219,7 @@ def test_the_compact_table_has_a_column_per_method_and_the_readme_cell_layout(ru
     first = score_rows(read_metrics(run_dir))[0]
     expected = (" / ".join(f"{first[MEAN_ERROR_COLUMNS[axis]]:.2f}" for axis in AXES)
                 + f" ({100 * first['failure_rate']:.0f}%)")
-    assert row.split(" | ")[1] == expected
+    assert row.split(" | ")[:2] == ["| run_a", expected]  # a name no other run has: alone
 
 
 def test_the_compact_table_keeps_runs_of_one_name_apart_and_says_which_did_not_finish(
@@ -428,6 +428,13 @@ def test_a_summary_without_such_estimates_lists_none_and_a_long_list_is_cut(tmp_
     assert table.count("| m |") == MAX_LISTED_LARGE_ERRORS + 1
     assert f"| m | {MAX_LISTED_LARGE_ERRORS - 1} | 6.00 |" in table
     assert "| m | and 3 more |" in table
+    exactly = large_errors_section([("m", None, error)
+                                    for error in errors[:MAX_LISTED_LARGE_ERRORS]])
+    assert "more |" not in "\n".join(exactly)
+    with_sources = "\n".join(large_errors_section([("m", "walk 1", errors[0]),
+                                                   ("m", None, errors[1])]))
+    assert "| Sequence |" in with_sources
+    assert "| m | walk 1 | 0 |" in with_sources and "| m |  | 1 |" in with_sources
 
 
 def test_the_summary_states_the_truths_own_residual(run):
@@ -446,3 +453,62 @@ def test_a_run_from_before_large_errors_were_counted_reads_n_a():
         del data["n_large_errors"]
     assert [row["large_errors"] for row in score_rows({"summary": summary})] == [None, None]
     assert large_errors_cell(None, 4) == "n/a" and large_errors_cell(2, 1234) == "2 of 1,234"
+
+
+def test_each_plot_draws_its_methods_estimates_errors_and_failures(monkeypatch, tmp_path):
+    import matplotlib.axes
+
+    import sim.harness.report as report
+
+    drawn, histograms = {}, []
+    real_hist = matplotlib.axes.Axes.hist
+
+    def keep_figure(figure, path):
+        drawn[path.name] = figure
+        return path
+
+    def hist(ax, values, **kwargs):
+        histograms.append((kwargs["label"], list(values)))
+        return real_hist(ax, values, **kwargs)
+
+    monkeypatch.setattr(report, "save_figure", keep_figure)
+    monkeypatch.setattr(matplotlib.axes.Axes, "hist", hist)
+    records = _records(n_frames=40)
+    write_run_outputs(tmp_path, scenario={}, records=records, summary=summarize(records),
+                      meta={}, status="complete")
+    own = [record for record in records if record.method == "sift"]
+    failed = [record for record in own if record.status != "ok"]
+    assert len(failed) == 4
+    for ax, axis in zip(drawn["estimates_sift.png"].axes, AXES):
+        truth, estimate, crosses = ax.get_lines()
+        expected = np.array([record.truth_of(axis) for record in own])
+        np.testing.assert_array_equal(truth.get_ydata(), expected)
+        np.testing.assert_array_equal(estimate.get_ydata(),
+                                      [record.estimate_of(axis) for record in own])
+        np.testing.assert_array_equal(crosses.get_xdata(), [record.time_s for record in failed])
+        np.testing.assert_array_equal(crosses.get_ydata(),
+                                      [record.truth_of(axis) for record in failed])
+        # The truth's fit residual (0.4 px) is a band around x and y only; a dotted line
+        # where the reference changes (frame 20).
+        *band, changes = ax.collections
+        assert len(band) == (0 if axis == "rotation" else 1)
+        if band:
+            edges = np.concatenate([path.vertices[:, 1] for path in band[0].get_paths()])
+            assert np.nanmin(edges) == pytest.approx(np.nanmin(expected) - 0.4)
+            assert np.nanmax(edges) == pytest.approx(np.nanmax(expected) + 0.4)
+        assert [segment[0][0] for segment in changes.get_segments()] == [20 / 30]
+    # The histograms: each method's scored errors, per axis.
+    assert histograms == [(method, [record.error_of(axis) for record in records
+                                    if record.method == method and record.scored])
+                          for axis in AXES for method in METHODS]
+
+
+def test_histogram_bins_span_the_errors_by_the_square_root_rule():
+    from sim.harness.report import MAX_HISTOGRAM_BINS, MIN_HISTOGRAM_RANGE, _shared_bins
+
+    edges = _shared_bins(np.array([1.0, 3.0, 2.0, 7.0, 5.0]))
+    assert edges[0] == 1.0 and edges[-1] == 7.0 and len(edges) == 3 + 1  # ceil(sqrt(5)) bins
+    assert len(_shared_bins(np.arange(1e5))) == MAX_HISTOGRAM_BINS + 1
+    equal = _shared_bins(np.full(9, 2.0))
+    np.testing.assert_allclose([equal[0], equal[-1]], [2.0 - MIN_HISTOGRAM_RANGE / 2,
+                                                       2.0 + MIN_HISTOGRAM_RANGE / 2])

@@ -418,3 +418,38 @@ def test_every_sensor_preset_takes_the_largest_noise_scale(tmp_path):
         scenario = load_scenario(write(tmp_path, f'scene = "lab"\n[sensor]\npreset = "{preset}"\n'
                                                  f'noise_scale = 100.0\n'))
         assert scenario.sensor.noise_scale == 100.0
+
+
+@pytest.mark.parametrize("text, refused", [
+    ('duration_s = 3600.0\n', None),
+    ('duration_s = 3600.0025\n', "0 < duration_s <= 3600"),
+    ('duration_s = 0.035\n', None),  # one frame at 30 frames/s, the least
+    ('duration_s = 2.0\n[sensor]\nfps = 0.5\n', None),
+    ('[sensor]\nnoise_scale = 0.0\n', None),
+    ('[sensor]\nnoise_scale = 100.5\n', "0 to 100"),
+    ('[sensor]\nfps = 40\noverrides = { integration_time_s = 0.025 }\n', "fps < 40.0"),
+    ('[recording]\nframe_stride = 1000\n', None),
+    ('[recording]\nframe_stride = 1001\n', "1 to 1000"),
+    ('duration_s = 5.0\n[[pushes]]\nt = 4.5\nimpulse_ns = [10.0, -10.0, 0.0]\nduration_s = 0.5\n',
+     None),  # the largest impulse, ending with the scenario
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 1.0\n', None),
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 1.0025\n', "0.0025 to 1 s"),
+    # Without duration_s, the default 20 s bounds the commands and pushes.
+    ('[[commands]]\nt = 0.0\n[[commands]]\nt = 21.0\n', "increasing"),
+    ('[[pushes]]\nt = 21.0\nimpulse_ns = [0.0, 1.0, 0.0]\n', "before duration_s"),
+])
+def test_values_at_each_limit_load_and_values_just_beyond_are_refused(tmp_path, text, refused):
+    path = write(tmp_path, text)
+    if refused is None:
+        load_scenario(path)
+        return
+    with pytest.raises(ScenarioError, match=refused):
+        load_scenario(path)
+
+
+def test_the_commanded_trajectory_walks_every_command_from_the_start():
+    scenario = load_scenario(SCENARIOS_DIR / "ci" / "ci_corridor.toml")  # 0.1 m/s from 0.5 s
+    walked = commanded_trajectory(scenario, (1.0, 2.0), 90.0)
+    np.testing.assert_allclose(walked[0], [1.0, 2.0])
+    np.testing.assert_allclose(walked[-1], [1.0, 2.0 + 0.1 * (scenario.duration_s - 0.5)],
+                               atol=1e-9)

@@ -13,10 +13,12 @@ from pathlib import Path
 
 import pytest
 
+import sim.harness.score
 from scenarios import SCENARIOS_DIR
 from sim.harness.cli import main
 from sim.harness.runner import RecordConfig, RunConfig, record, run
 from sim.harness.score import ScoreConfig, reference_chunks, score
+from tests.sim.harness.test_recording import _rows_per_entity
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 METHODS = ("t2fuzzy", "ecc")
@@ -110,6 +112,33 @@ def test_chunks_are_cut_only_where_the_reference_changes():
     for chunk in chunks:
         assert chunk[0] == 0 or references[chunk[0]] != references[chunk[0] - 1]
     assert reference_chunks(list(range(-1, 9)), 5) == [[0, 1], [2, 3], [4, 5], [6, 7], [8, 9]]
+
+
+
+def test_workers_whose_chunks_hold_several_references_record_and_score_as_one_process(
+        tmp_path, monkeypatch):
+    # With each frame's reference the frame before, and four chunks of three frames, every
+    # chunk a worker takes spans three references: each frame must be estimated against its
+    # own. The paper's method's segmentation comes back from the workers for the recording.
+    monkeypatch.setattr(sim.harness.score, "CHUNKS_PER_WORKER", 2)
+    sequence = tmp_path / "sequence"
+    record(RecordConfig(scenario=CI_CORRIDOR, out_dir=str(sequence), max_frames=12,
+                        overrides={"evaluation.reference": "previous",
+                                   "recording.enabled": True}))
+    for workers in (1, 2):
+        score(ScoreConfig(sequence=str(sequence), out_dir=str(tmp_path / f"w{workers}"),
+                          methods=("t2fuzzy",), workers=workers))
+    one, two = _rows(tmp_path / "w1"), _rows(tmp_path / "w2")
+    assert [int(row["reference_index"]) for row in one] == [0] + list(range(11))
+    _same_rows(one, two)
+    recorded = [_rows_per_entity(tmp_path / f"w{workers}" / "recording.rrd")
+                for workers in (1, 2)]
+    assert recorded[0] == recorded[1]
+    assert recorded[1]["/images/segmentation"][1] == 12
+    # --no-record writes no recording, whatever the scenario allows.
+    score(ScoreConfig(sequence=str(sequence), out_dir=str(tmp_path / "quiet"),
+                      methods=("ecc",), record=False, workers=1))
+    assert not (tmp_path / "quiet" / "recording.rrd").exists()
 
 
 OFFSETS = (0.5, -1.25, 2.0)
@@ -253,6 +282,12 @@ def test_an_interrupted_run_over_a_finished_one_leaves_it_as_it_was(folders, tmp
     metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
                                 methods=("ecc", "sift"), record=False, workers=1))
     assert metrics["status"] == "interrupted"
+    # Its simulated time is the time it reached, that of the frame it stopped in (as a run's
+    # simulation), not the whole sequence's.
+    with open(folders / "sequence" / "truth.csv", newline="") as handle:
+        times = [float(row["time_s"]) for row in csv.DictReader(handle)]
+    assert 0 < metrics["run"]["frames_done"] < N_FRAMES
+    assert metrics["run"]["sim_time_s"] == times[metrics["run"]["frames_done"]]
     assert {path.name: path.read_bytes() for path in out.iterdir()} == before
     # Finished, the new run replaces the old one.
     rerun = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(out),
@@ -470,6 +505,9 @@ def test_an_estimates_path_holding_an_equals_sign_is_scored_and_a_missing_one_na
     _estimates_from_truth(folders / "sequence", tmp_path / "run=3" / "est.csv")
     assert parse_estimates_argument("run=3/est.csv") == ("est", "run=3/est.csv")
     assert parse_estimates_argument("x=run=3/est.csv") == ("x", "run=3/est.csv")
+    for unnamed_or_pathless in ("=run=3/est.csv", " =est.csv", "x=", "x= "):
+        with pytest.raises(ValueError, match="accepted: FILE.csv or NAME=FILE.csv"):
+            parse_estimates_argument(unnamed_or_pathless)
     assert main(["score", str(folders / "sequence"), "--estimates", "run=3/est.csv",
                  "--out", "scored", "--no-record", "--quiet"]) == 0
     assert {row["method"] for row in _rows(tmp_path / "scored")} == {"est"}

@@ -261,6 +261,15 @@ def test_ok_estimates_beyond_the_large_error_limits_are_counted_per_method():
     assert restored.run["a"].large_errors == summary.run["a"].large_errors
 
 
+def test_the_large_error_limits_are_issue_15s_and_an_error_right_at_them_is_not_beyond():
+    # "No ok frame off by more than 5 deg or 10 px": the README and docs quote these figures.
+    assert (LARGE_ERROR_DEG, LARGE_ERROR_PX) == (5.0, 10.0)
+    at_limits = [_record(0, "a", Motion(5.0, 0.0, 0.0), _truth()),
+                 _record(1, "a", Motion(0.0, 10.0, -10.0), _truth()),
+                 _record(2, "a", Motion(0.0, 0.0, 0.0), _truth(dx=10.5))]
+    assert [record.large_error for record in at_limits] == [False, False, True]
+
+
 def test_a_score_written_before_large_errors_were_counted_loads_without_a_count():
     data = summarize([_record(0, "a", Motion(9.0, 0.0, 0.0), _truth())]).to_dict()["run"]["a"]
     assert MethodScore.from_dict(json.loads(json.dumps(data))).n_large_errors == 1
