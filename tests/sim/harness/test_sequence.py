@@ -15,7 +15,8 @@ from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, recor
 from sim.harness.scenario import load_scenario
 from sim.harness.interrupts import Interrupted
 from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M, FORMAT, TRUTH_COLUMNS,
-                                  SequenceWriter, encode_frame, load_sequence)
+                                  SequenceWriter, decoded_frame, encode_frame,
+                                  load_sequence)
 from sim.harness.validation import FileValueError
 from sim.world.camera import Frame
 
@@ -75,6 +76,22 @@ def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0
     with pytest.raises(ValueError, match=r"frame 0's reported depth reaches 7.00 m; a sequence "
                                          r"stores at most 6.5535 m"):
         encode_frame(far, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
+
+
+def test_a_frames_unmeasured_pixels_and_surfaces_read_back_unmeasured_and_absent():
+    depth = np.full((2, 3), 2.0, np.float32)
+    valid = np.ones((2, 3), bool)
+    valid[1, 2] = False  # a pixel the sensor does not report (low amplitude, say)
+    exact = depth.copy()
+    exact[0, 1] = 0.0  # no surface rendered there
+    frame = Frame(index=3, time_s=0.1, depth_m=depth, valid=valid,
+                  disparity8=np.zeros((2, 3), np.uint8), cam_pos=np.zeros(3),
+                  cam_mat=np.eye(3), true_depth_m=exact)
+    decoded = decoded_frame(3, 0.1, frame.cam_pos, frame.cam_mat,
+                            encode_frame(frame, 50.0, FINE_DEPTH_UNIT_M), FINE_DEPTH_UNIT_M)
+    np.testing.assert_array_equal(decoded.valid, valid)
+    assert decoded.depth_m[1, 2] == 0 and decoded.disparity8[1, 2] == 0
+    assert decoded.true_depth_m[0, 1] == 0 and decoded.true_depth_m[0, 0] == 2.0
 
 
 def _broken_copy(sequence_dir, tmp_path, damage):
@@ -411,3 +428,20 @@ def test_a_recording_into_a_run_folder_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "holds a run (its metrics.json)" in err[0]
     assert sorted(path.name for path in folder.iterdir()) == before
+
+
+def test_removing_a_recording_removes_its_entries_not_what_a_link_among_them_points_to(
+        tmp_path):
+    from sim.harness.sequence import remove_recording
+
+    folder, elsewhere = tmp_path / "sequence", tmp_path / "users_own"
+    (folder / "exact").mkdir(parents=True)
+    (folder / "exact" / "000000.png").write_bytes(b"png")
+    elsewhere.mkdir()
+    (elsewhere / "keep.txt").write_text("mine")
+    (folder / "depth").symlink_to(elsewhere, target_is_directory=True)
+    for name in ("sequence.json", "truth.csv", "notes.txt"):
+        (folder / name).write_text("x")
+    remove_recording(folder)
+    assert sorted(path.name for path in folder.iterdir()) == ["notes.txt"]
+    assert (elsewhere / "keep.txt").read_text() == "mine"

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from sim.harness.suite.statistics import BCA, PERCENTILE, mean_interval, paired_difference
+from sim.harness.suite.statistics import (BCA, PERCENTILE, Interval, mean_interval,
+                                          paired_difference)
 
 
 def test_the_interval_of_a_known_sample_contains_its_mean():
@@ -74,3 +75,17 @@ def test_non_finite_samples_are_left_out_and_pairs_need_both_sides():
 def test_paired_samples_of_different_lengths_are_refused():
     with pytest.raises(ValueError, match="same length"):
         paired_difference([1.0, 2.0], [1.0])
+
+
+def test_two_samples_are_enough_for_an_interval():
+    # A suite of two scene seeds, as CI runs, has intervals.
+    interval = mean_interval([1.0, 2.0])
+    assert (interval.mean, interval.n) == (1.5, 2)
+    assert 1.0 <= interval.low < 1.5 < interval.high <= 2.0 and interval.method == BCA
+
+
+@pytest.mark.parametrize("low, high, excludes", [(0.2, 0.8, True), (1e-9, 3.0, True),
+                                                 (-0.8, -0.2, True), (-0.1, 0.1, False),
+                                                 (0.0, 0.5, False), (math.nan, math.nan, False)])
+def test_an_interval_excludes_zero_only_when_wholly_on_one_side(low, high, excludes):
+    assert Interval(0.5, low, high, 10, BCA).excludes_zero() is excludes
