@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import shutil
 
 import numpy as np
@@ -145,6 +146,20 @@ def test_a_truth_table_saved_with_a_byte_order_mark_reads_the_same(sequence_dir,
     copy = _broken_copy(sequence_dir, tmp_path,
                         _edit_truth(lambda text: text.encode("utf-8-sig")))
     assert load_sequence(copy).rows == load_sequence(sequence_dir).rows
+
+
+def test_a_frame_without_a_truth_reads_back_as_one(sequence_dir, tmp_path):
+    # The truth of a frame that shares too little with its reference is NaN, "no_overlap".
+    def no_truth(text):
+        for column, value in (("angle_deg", "nan"), ("dx", "nan"), ("dy", "nan"),
+                              ("truth_residual_px", "nan"), ("truth_status", "no_overlap")):
+            text = _set_cell(text, 2, column, value)
+        return text.encode()
+
+    row = load_sequence(_broken_copy(sequence_dir, tmp_path, _edit_truth(no_truth))).rows[2]
+    assert row.truth_status == "no_overlap"
+    assert all(math.isnan(value) for value in (row.angle_deg, row.dx, row.dy,
+                                               row.truth_residual_px))
 
 
 @pytest.mark.parametrize("damage, named", [
