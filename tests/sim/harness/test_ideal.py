@@ -287,6 +287,13 @@ def test_an_ideal_trajectory_within_its_bounds_is_replayed(tmp_path):
     metrics = run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "out"),
                                     trajectory=str(path), methods=("ecc",)))
     assert metrics["status"] == "complete" and metrics["summary"]["n_frames"] == 2
+    # failures.jsonl lists the frames whose estimate failed (frame 0 left the image), only.
+    with open(tmp_path / "out" / "frames.csv", newline="") as handle:
+        failed = [int(row["frame_index"]) for row in csv.DictReader(handle)
+                  if row["status"] != "ok"]
+    listed = [json.loads(line)["frame_index"] for line in
+              (tmp_path / "out" / "failures.jsonl").read_text().splitlines()]
+    assert listed == failed and 0 in failed and len(failed) < 2
     # Without an image, the bound is the longest side any image may have.
     assert trajectory_from_run(_frames_csv(tmp_path / "far.csv", "0,ok,0,100000,0\n"))
 

@@ -49,10 +49,18 @@ def test_run_writes_every_output_and_they_agree(tmp_path):
     assert on_disk["status"] == "complete" and on_disk["run"]["frames_done"] == 12
     assert on_disk["scenario"]["name"] == "ci_corridor"
     assert "Rotation displacement" in (run_dir / "summary.md").read_text()
+    assert "`recording.rrd`" in (run_dir / "summary.md").read_text()  # listed, to open
     # The truth of the reference frame itself is the identity.
     first = next(row for row in rows if row["frame_index"] == "0")
     assert first["reference_index"] == "0"
     assert abs(float(first["true_angle_deg"])) < 1e-9 and abs(float(first["true_dx_px"])) < 1e-9
+
+
+def test_a_run_told_not_to_record_does_not_whatever_the_scenario_allows(tmp_path):
+    _, run_dir = _short_run(tmp_path, methods=("ecc",), max_frames=3,
+                            overrides={"recording.enabled": True})
+    assert not (run_dir / "recording.rrd").exists()
+    assert "`recording.rrd`" not in (run_dir / "summary.md").read_text()
 
 
 def test_each_failed_estimate_keeps_its_diagnostics_in_failures_jsonl(tmp_path):
