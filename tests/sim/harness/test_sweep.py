@@ -235,6 +235,11 @@ def test_bad_backend_and_workers_are_refused(tmp_path):
         run_sweep(small_spec(), tmp_path, backend="dask", run_fn=fake_run)
     with pytest.raises(ValueError, match=r"workers \S+: accepted: an integer from 1 to \d+"):
         run_sweep(small_spec(), tmp_path, workers=0, run_fn=fake_run)
+    for workers in (0, 1.5, True):  # on Ray too, before anything is imported or written
+        with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+            run_sweep(small_spec(), tmp_path / "ray", backend="ray", workers=workers,
+                      run_fn=fake_run)
+    assert not (tmp_path / "ray").exists()
 
 
 @pytest.mark.parametrize("workers, n_runs, expected", [(None, 4, 1), (3, 4, 3), (4, 2, 2)])
