@@ -114,7 +114,6 @@ def test_chunks_are_cut_only_where_the_reference_changes():
     assert reference_chunks(list(range(-1, 9)), 5) == [[0, 1], [2, 3], [4, 5], [6, 7], [8, 9]]
 
 
-
 def test_workers_whose_chunks_hold_several_references_record_and_score_as_one_process(
         tmp_path, monkeypatch):
     # With each frame's reference the frame before, and four chunks of three frames, every

@@ -16,8 +16,8 @@ from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, recor
 from sim.harness.scenario import load_scenario
 from sim.harness.interrupts import Interrupted
 from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M, FORMAT, TRUTH_COLUMNS,
-                                  SequenceWriter, decoded_frame, encode_frame,
-                                  load_sequence)
+                                  SequenceWriter, decoded_frame, encode_frame, load_sequence,
+                                  remove_recording)
 from sim.harness.validation import FileValueError
 from sim.world.camera import Frame
 
@@ -447,8 +447,6 @@ def test_a_recording_into_a_run_folder_is_refused(tmp_path, capsys):
 
 def test_removing_a_recording_removes_its_entries_not_what_a_link_among_them_points_to(
         tmp_path):
-    from sim.harness.sequence import remove_recording
-
     folder, elsewhere = tmp_path / "sequence", tmp_path / "users_own"
     (folder / "exact").mkdir(parents=True)
     (folder / "exact" / "000000.png").write_bytes(b"png")

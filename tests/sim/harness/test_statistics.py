@@ -88,4 +88,4 @@ def test_two_samples_are_enough_for_an_interval():
                                                  (-0.8, -0.2, True), (-0.1, 0.1, False),
                                                  (0.0, 0.5, False), (math.nan, math.nan, False)])
 def test_an_interval_excludes_zero_only_when_wholly_on_one_side(low, high, excludes):
-    assert Interval(0.5, low, high, 10, BCA).excludes_zero() is excludes
+    assert Interval((low + high) / 2, low, high, 10, BCA).excludes_zero() is excludes
