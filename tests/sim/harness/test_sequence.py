@@ -63,13 +63,17 @@ def test_a_recorded_sequence_reads_back_the_frames_and_truth_it_was_made_of(sequ
     np.testing.assert_allclose(optical, camera * [1.0, -1.0, -1.0], atol=1e-12)
 
 
+def _small_frame(valid, exact):
+    """A 2 x 3 frame 2 m deep everywhere it reports (``valid``), with exact depth ``exact``."""
+    return Frame(index=0, time_s=0.0, depth_m=np.full((2, 3), 2.0, np.float32), valid=valid,
+                 disparity8=np.zeros((2, 3), np.uint8), cam_pos=np.zeros(3), cam_mat=np.eye(3),
+                 true_depth_m=exact)
+
+
 def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0():
-    depth = np.full((2, 3), 2.0, np.float32)
-    exact = depth.copy()
+    exact = np.full((2, 3), 2.0, np.float32)
     exact[0, 0] = 50.0  # the render's no-surface depth (its far clip)
-    frame = Frame(index=0, time_s=0.0, depth_m=depth, valid=depth > 0,
-                  disparity8=np.zeros((2, 3), np.uint8), cam_pos=np.zeros(3),
-                  cam_mat=np.eye(3), true_depth_m=exact)
+    frame = _small_frame(np.ones((2, 3), bool), exact)
     encoded = encode_frame(frame, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
     assert encoded.exact[0, 0] == 0 and np.all(encoded.exact.ravel()[1:] == 4000)
     assert np.all(encoded.depth == 20000)
@@ -80,15 +84,12 @@ def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0
 
 
 def test_a_frames_unmeasured_pixels_and_surfaces_read_back_unmeasured_and_absent():
-    depth = np.full((2, 3), 2.0, np.float32)
     valid = np.ones((2, 3), bool)
     valid[1, 2] = False  # a pixel the sensor does not report (low amplitude, say)
-    exact = depth.copy()
+    exact = np.full((2, 3), 2.0, np.float32)
     exact[0, 1] = 0.0  # no surface rendered there
-    frame = Frame(index=3, time_s=0.1, depth_m=depth, valid=valid,
-                  disparity8=np.zeros((2, 3), np.uint8), cam_pos=np.zeros(3),
-                  cam_mat=np.eye(3), true_depth_m=exact)
-    decoded = decoded_frame(3, 0.1, frame.cam_pos, frame.cam_mat,
+    frame = _small_frame(valid, exact)
+    decoded = decoded_frame(0, 0.0, frame.cam_pos, frame.cam_mat,
                             encode_frame(frame, 50.0, FINE_DEPTH_UNIT_M), FINE_DEPTH_UNIT_M)
     np.testing.assert_array_equal(decoded.valid, valid)
     assert decoded.depth_m[1, 2] == 0 and decoded.disparity8[1, 2] == 0
