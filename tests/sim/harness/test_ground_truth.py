@@ -132,15 +132,91 @@ def test_occluded_points_are_dropped():
     assert wide_relative.n_points == without_check.n_points
 
 
-@pytest.mark.parametrize("step_m", [(0.026, 0.0), (-0.026, 0.0), (0.0, 0.025), (0.0, -0.025)])
-def test_points_carried_out_of_the_image_are_dropped(step_m):
+def _still_wall_with_strips(strips: dict) -> tuple[Frame, Frame]:
+    """A wall 3 m ahead seen twice from the same pose; in the current frame, the rows or
+    columns named in ``strips`` ({("row" or "col", index): depth}) measure that depth instead."""
+    reference = render_frame([facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)], ORIGIN,
+                             camera_matrix())
+    depth = reference.depth_m.copy()
+    for (axis, index), strip_m in strips.items():
+        if axis == "row":
+            depth[index] = strip_m
+        else:
+            depth[:, index] = strip_m
+    return reference, dataclasses.replace(reference, index=1, depth_m=depth)
+
+
+def test_an_occluder_hides_exactly_the_points_that_land_on_it():
+    """The camera has not moved: each point lands on its own pixel, and is hidden exactly
+    where the current frame measures something nearer there, the image's outermost rows and
+    columns included (pixel j covers [j - 0.5, j + 0.5), so the nearest pixel is sampled)."""
+    last_row, last_col = SR4000_INTRINSICS.height - 1, SR4000_INTRINSICS.width - 1
+    strips = {("col", 0): 1.0, ("col", 57): 1.0, ("col", last_col): 1.0,
+              ("row", 0): 1.0, ("row", 90): 1.0, ("row", last_row): 1.0}
+    truth = ground_truth(*_still_wall_with_strips(strips), stride=1)
+    hidden = np.zeros((SR4000_INTRINSICS.height, SR4000_INTRINSICS.width), bool)
+    hidden[[0, 90, last_row]] = True
+    hidden[:, [0, 57, last_col]] = True
+    rows, cols = np.nonzero(~hidden)
+    assert truth.n_points == rows.size
+    np.testing.assert_array_equal(truth.correspondences.source_px,
+                                  np.column_stack((cols, rows)).astype(np.float32))
+    assert truth.motion.as_tuple() == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
+
+
+def test_an_occluder_must_be_nearer_than_the_tolerance_of_its_own_depth():
+    """Behind a surface at d by more than 0.05 m + 3 % of d hides a point (OCCLUSION_ABS_M,
+    OCCLUSION_REL): 2.9 m before a 3 m wall (0.1 m, within its 0.137 m) hides nothing, 2.84 m
+    (0.16 m, beyond its 0.135 m) hides the column."""
+    near, nearer = 40, 120
+    truth = ground_truth(*_still_wall_with_strips({("col", near): 2.9, ("col", nearer): 2.84}),
+                         stride=1)
+    source_cols = truth.correspondences.source_px[:, 0]
+    assert np.count_nonzero(source_cols == near) == SR4000_INTRINSICS.height
+    assert not np.any(source_cols == nearer)
+    assert truth.n_points == SR4000_INTRINSICS.height * (SR4000_INTRINSICS.width - 1)
+
+
+def test_surfaces_nearer_than_a_metre_are_surfaces():
+    near_wall = [facing_rectangle(0.4, 0.0, 0.0, 5.0, 5.0)]
+    truth = ground_truth(*_frames(world=near_wall, yaw_deg=1.0))
+    assert truth.ok and truth.n_points > 0.9 * 72 * 88
+
+
+def test_a_truth_fits_with_exactly_min_points_points_and_not_one_fewer():
+    reference, current = _frames(roll_deg=2.0, yaw_deg=1.0)
+    n_points = ground_truth(reference, current).n_points
+    assert ground_truth(reference, current, min_points=n_points).ok
+    assert ground_truth(reference, current, min_points=n_points + 1).motion.status == \
+        "no_overlap"
+
+
+def test_stride_one_uses_every_pixel():
+    truth = ground_truth(*_frames(roll_deg=2.0, yaw_deg=1.0), stride=1)
+    half = ground_truth(*_frames(roll_deg=2.0, yaw_deg=1.0), stride=2)
+    assert 3.8 * half.n_points < truth.n_points < 4.2 * half.n_points
+    assert truth.motion.as_tuple() == pytest.approx(half.motion.as_tuple(), abs=0.05)
+
+
+def test_a_max_depth_nearer_than_every_surface_leaves_no_overlap():
+    truth = ground_truth(*_frames(), max_depth_m=0.5)
+    assert truth.motion.status == "no_overlap" and truth.n_points == 0
+
+
+@pytest.mark.parametrize("step_m, shift_px", [
+    ((0.026, 0.0), 1.9), ((-0.026, 0.0), 1.9), ((0.0, 0.025), 1.9), ((0.0, -0.025), 1.9),
+    ((0.0178, 0.0), 1.3), ((-0.0178, 0.0), 1.3), ((0.0, 0.017), 1.3), ((0.0, -0.017), 1.3),
+    ((0.0096, 0.0), 0.7), ((-0.0096, 0.0), 0.7), ((0.0, 0.0092), 0.7), ((0.0, -0.0092), 0.7),
+])
+def test_points_carried_out_of_the_image_are_dropped(step_m, shift_px):
     # A step across a wall 3 m ahead shifts the image by about 1.9 px: the outermost row or
     # column of the stride-2 grid lands in [W - 0.5, W + 0.5) or [H - 0.5, H + 0.5), beyond
-    # the last pixel (pixel j covers [j - 0.5, j + 0.5)).
+    # the last pixel (pixel j covers [j - 0.5, j + 0.5)). A shift of 1.3 px puts it inside the
+    # last pixel, one of 0.7 px the other way outside the first.
     wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
     truth = ground_truth(*_frames(world=wall, current_pos=np.array([0.0, *step_m])))
     assert truth.motion.angle_deg == pytest.approx(0.0, abs=1e-9)
-    assert 1.8 < math.hypot(truth.motion.dx, truth.motion.dy) < 2.0
+    assert math.hypot(truth.motion.dx, truth.motion.dy) == pytest.approx(shift_px, abs=0.1)
     rows, cols = np.mgrid[0:144:2, 0:176:2]
     x, y = cols.ravel() + truth.motion.dx, rows.ravel() + truth.motion.dy
     inside = (x >= -0.5) & (x < 175.5) & (y >= -0.5) & (y < 143.5)
@@ -366,6 +442,20 @@ def test_an_exact_truth_sends_its_points_where_the_motion_does():
     assert truth.end_point_error(Motion(3.0, 1.0, 1.0)) == pytest.approx((5.0, 5.0), abs=1e-4)
     gone = GroundTruth.exact(Motion(0.0, 500.0, 0.0), source, (144, 176))
     assert gone.n_points == 0 and all(math.isnan(v) for v in gone.end_point_error(gone.motion))
+    assert gone.ok and gone.residual_rms_px == 0.0
+
+
+@pytest.mark.parametrize("shift_px, kept", [(-0.5, 176), (0.3, 176), (0.5, 175), (-0.7, 175),
+                                            (0.7, 175)])
+def test_an_exact_truth_keeps_the_points_that_land_on_a_pixel(shift_px, kept):
+    """Pixel j covers [j - 0.5, j + 0.5): a shift of -0.5 px keeps the first column (and row),
+    +0.5 px carries the last one out, and 0.7 px either way the outermost one."""
+    rows, cols = np.mgrid[0:144, 0:176]
+    source = np.stack([cols.ravel(), rows.ravel()], axis=1)
+    along_x = GroundTruth.exact(Motion(0.0, shift_px, 0.0), source, (144, 176))
+    assert along_x.n_points == 144 * kept
+    along_y = GroundTruth.exact(Motion(0.0, 0.0, shift_px), source, (144, 176))
+    assert along_y.n_points == 176 * (kept - 32)
 
 
 # --------------------------------------------------------------------------- no surface
@@ -385,6 +475,9 @@ def test_far_clip_depth_is_no_surface():
     clipped = ground_truth(reference, current, reference_depth_m=far_clipped(reference),
                            current_depth_m=far_clipped(current))
     assert clipped == open_sky
+    # A depth right at the limit is no surface either.
+    assert ground_truth(reference, current, reference_depth_m=far_clipped(reference),
+                        current_depth_m=far_clipped(current), max_depth_m=20.0) == open_sky
     # Without the limit the far clip enters the fit as a wall at 20 m, and moves the truth.
     as_wall = ground_truth(reference, current, reference_depth_m=far_clipped(reference),
                            current_depth_m=far_clipped(current), max_depth_m=math.inf)
