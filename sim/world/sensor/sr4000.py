@@ -79,7 +79,8 @@ def camera_intrinsics(model: mujoco.MjModel, camera_id: int) -> CameraIntrinsics
     if sensor_w > 0 and sensor_h > 0:
         focal_x, focal_y, offset_x, offset_y = model.cam_intrinsic[camera_id]
         fx, fy = focal_x / sensor_w * width, focal_y / sensor_h * height
-        cx = (width - 1) / 2.0 + offset_x / sensor_w * width
+        # MuJoCo moves the principal point against its offset along both image axes.
+        cx = (width - 1) / 2.0 - offset_x / sensor_w * width
         cy = (height - 1) / 2.0 - offset_y / sensor_h * height
         return CameraIntrinsics(width, height, fx, fy, cx, cy)
     fy = (height / 2.0) / math.tan(math.radians(model.cam_fovy[camera_id]) / 2.0)

@@ -12,6 +12,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from dm_control import mjcf  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
 
 from sim.world.camera import SR4000_INTRINSICS  # noqa: E402
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera, camera_intrinsics  # noqa: E402
@@ -73,6 +74,51 @@ def test_rendered_fov_matches_intrinsics():
     assert rows.mean() == pytest.approx(k.cy - k.fy * y_up / z, abs=0.3)
     assert np.ptp(cols) + 1 == pytest.approx(2 * half * k.fx / z, abs=1.0)
     assert np.ptp(rows) + 1 == pytest.approx(2 * half * k.fy / z, abs=1.0)
+
+
+@pytest.mark.parametrize("camera", [
+    {"fovy": "45"},
+    {"resolution": "176 144", "focalpixel": "220 231", "sensorsize": "0.00704 0.00576"},
+    {"resolution": "176 144", "focalpixel": "220 231", "sensorsize": "0.00704 0.00576",
+     "principalpixel": "10 5"},
+    {"resolution": "176 144", "focalpixel": "200 240", "sensorsize": "0.00704 0.00576",
+     "principalpixel": "-8 -6"},
+], ids=["fovy", "focal", "principal", "principal_negative"])
+def test_camera_intrinsics_put_a_point_where_mujoco_renders_it(camera):
+    """camera_intrinsics of any MJCF camera (a vertical field of view alone, or focal lengths
+    with a sensor size and a principal-point offset): a small sphere off the axis in both
+    directions renders where those intrinsics project its centre."""
+    attributes = " ".join(f'{name}="{value}"' for name, value in camera.items())
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><statistic extent="10"/><visual><map znear="0.005" zfar="3"/></visual>'
+        '<worldbody><geom type="box" pos="3.05 0 0" size="0.05 20 20"/>'
+        '<geom type="sphere" pos="2.9 -0.3 0.2" size="0.03"/>'
+        f'<camera name="c" xyaxes="0 -1 0 0 0 1" {attributes}/></worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rows, cols = np.nonzero(raw_depth(model, data, "c") < 2.95)
+    k = camera_intrinsics(model, 0)
+    x_right, y_down, z = 0.3, -0.2, 2.9  # the sphere's centre in the camera's frame
+    assert cols.size > 10
+    assert cols.mean() == pytest.approx(k.cx + k.fx * x_right / z, abs=0.3)
+    assert rows.mean() == pytest.approx(k.cy + k.fy * y_down / z, abs=0.3)
+
+
+def test_a_probe_camera_stands_where_it_is_put_and_looks_along_its_yaw():
+    """add_probe_camera at (1.0, -0.5) turned 90 degrees looks along +y: the panel 3 m ahead
+    of it fills the image's centre (a backdrop 6 m ahead is seen from anywhere else)."""
+    root = mjcf.RootElement(model="probe")
+    root.statistic.extent = 10.0
+    root.visual.map.znear, root.visual.map.zfar = 0.005, 3.0
+    root.worldbody.add("geom", type="box", pos=[1.0, 2.55, 0.55], size=[0.3, 0.05, 0.3])
+    root.worldbody.add("geom", type="box", pos=[0.0, 5.55, 0.55], size=[20.0, 0.05, 20.0])
+    camera = add_probe_camera(root, (1.0, -0.5), 90.0, height_m=0.55)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string())
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    depth = raw_depth(model, data, camera)
+    np.testing.assert_allclose(depth[62:82, 78:98], 3.0, atol=1e-3)
+    assert depth[:, :20].min() == pytest.approx(6.0, abs=1e-3)
 
 
 def test_noiseless_preset_equals_raw_render():
@@ -163,6 +209,10 @@ def test_motion_blur_mixes_depth_across_a_moving_edge_and_pose_is_mid_exposure()
         frame = sensor.read_frame(2)
     assert frame.time_s == pytest.approx(times[1])
     np.testing.assert_allclose(frame.cam_pos, poses[1])
+    # The exact depth for the ground truth is the middle exposure's render.
+    data.mocap_pos[0] = [0.0, speed * times[1], 0.55]
+    mujoco.mj_forward(model, data)
+    np.testing.assert_array_equal(frame.true_depth_m, raw_depth(model, data, camera))
     between = frame.valid & (frame.depth_m > 1.05) & (frame.depth_m < 2.9)
     assert between.sum(axis=1).min() >= 3  # every row smeared over several pixels
 
@@ -178,14 +228,22 @@ def test_frames_within_a_duration_end_their_exposure_in_it():
 
 def test_even_subframes_interpolate_the_mid_exposure_pose():
     model, data, camera = box_world([wall(2.0)])
+    frame_at_rest = data.cam_xmat[model.camera(camera).id].reshape(3, 3).copy()
     params = dataclasses.replace(NOISELESS, motion_blur_subframes=2)
     with SR4000(model, camera, params) as sensor:
         for t in sensor.exposure_times(0):
             data.time = t
             data.mocap_pos[0] = [0.0, t, 0.55]
+                # Turning too, at 100 degrees a second about the vertical.
+            data.mocap_quat[0] = Rotation.from_euler("z", 100.0 * t, degrees=True).as_quat(
+                scalar_first=True)
             sensor.expose(data)
         frame = sensor.read_frame(0)
-    assert frame.cam_pos[1] == pytest.approx(params.integration_time_s / 2)
+    middle = params.integration_time_s / 2
+    assert frame.cam_pos[1] == pytest.approx(middle)
+    # The camera's image right is the body's -y (add_probe_camera).
+    turned = Rotation.from_euler("z", 100.0 * middle, degrees=True).as_matrix()
+    np.testing.assert_allclose(frame.cam_mat, turned @ frame_at_rest, atol=1e-9)
 
 
 def test_frames_are_deterministic_from_the_seed_and_disparity_follows_depth():
@@ -207,6 +265,7 @@ def test_bad_settings_are_value_errors_naming_the_fix():
     model, data, camera = box_world([wall(2.0)])
     with pytest.raises(ValueError, match="fps"):
         SR4000(model, camera, fps=60.0)
+    SR4000(model, camera, fps=0.5).close()  # one frame every 2 s is a frame rate
     with pytest.raises(ValueError, match="integration_time_s"):
         SR4000(model, camera, dataclasses.replace(DEFAULT, integration_time_s=0.025), fps=50.0)
     with pytest.raises(ValueError, match="motion_blur_subframes"):
@@ -217,9 +276,19 @@ def test_bad_settings_are_value_errors_naming_the_fix():
         sensor.expose(data)
         with pytest.raises(ValueError, match="needs 3 exposures"):
             sensor.read_frame(0)
-    shallow, _, shallow_camera = box_world([wall(2.0)], zfar=0.5)
-    with pytest.raises(ValueError, match="znear"):
-        SR4000(shallow, shallow_camera)
+        sensor.expose(data)
+        sensor.expose(data)
+        with pytest.raises(ValueError, match="already 3 exposures"):
+            sensor.expose(data)
+    # The clip planes must reach from 0.1 m or nearer to 10 m or farther (extent 10 here).
+    for znear, zfar, refused in ((0.005, 0.5, True), (0.015, 3.0, True), (0.01, 1.0, False),
+                                 (0.005, 1.5, False)):
+        clipped, _, clipped_camera = box_world([wall(2.0)], znear=znear, zfar=zfar)
+        if refused:
+            with pytest.raises(ValueError, match="znear"):
+                SR4000(clipped, clipped_camera)
+        else:
+            SR4000(clipped, clipped_camera).close()
     fovy = mujoco.MjModel.from_xml_string(
         '<mujoco><visual><map znear="0.001" zfar="100"/></visual><worldbody>'
         '<camera name="c" fovy="45"/></worldbody></mujoco>')

@@ -392,6 +392,35 @@ def test_geom_ids_read_from_the_depth_render_equal_the_segmentation_render():
     np.testing.assert_array_equal(read_back, expected)
 
 
+def test_geom_ids_past_255_and_the_background_read_back_as_the_segmentation_render():
+    """Ids take more than one colour byte: 300 tiles 3 m ahead, with empty space between and
+    around them, read back as the public segmentation render has them (-1 where no geom)."""
+    root = mjcf.RootElement(model="tiles")
+    root.statistic.extent = 10.0
+    root.visual.map.znear, root.visual.map.zfar = 0.005, 3.0
+    for index in range(300):
+        row, col = divmod(index, 20)
+        root.worldbody.add("geom", type="box", size=[0.01, 0.045, 0.045],
+                           pos=[3.0, (col - 9.5) * 0.11, 0.55 + (row - 7) * 0.11])
+    camera = add_probe_camera(root, (0.0, 0.0), 0.0)
+    model = mujoco.MjModel.from_xml_string(root.to_xml_string())
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    renderer = open_depth_renderer(model)
+    try:
+        renderer.update_scene(data, camera=camera)
+        renderer.render()
+        read_back = rendered_geom_ids(renderer)
+        renderer.enable_segmentation_rendering()
+        segmentation = renderer.render()
+    finally:
+        renderer.close()
+    expected = np.where(segmentation[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM),
+                        segmentation[..., 0], -1)
+    assert expected.max() > 280 and (expected == -1).sum() > 1000
+    np.testing.assert_array_equal(read_back, expected)
+
+
 def test_geoms_without_a_known_material_take_the_scalar_reflectivity():
     root = mjcf.RootElement(model="m")
     root.asset.add("material", name="wood")
