@@ -53,6 +53,18 @@ def test_a_single_thread_pools_workers_run_one_opencv_and_one_blas_thread_and_ig
 
 def test_a_worker_count_given_is_kept():
     assert worker_count(3, wanted=1) == 3
+    assert worker_count(1, wanted=5) == 1
+
+
+def test_a_pool_ends_its_workers_and_gives_the_environment_back_when_it_ends(monkeypatch):
+    for name in THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    with single_thread_pool(1) as pool:
+        assert os.environ["OMP_NUM_THREADS"] == "1"  # what a starting worker reads
+        worker = pool.submit(os.getpid).result()
+    assert not {name for name in THREAD_VARIABLES if name in os.environ}
+    with pytest.raises(ProcessLookupError):  # ended and reaped
+        os.kill(worker, 0)
 
 
 @pytest.mark.parametrize("workers", [0, -1, True, 2.0, "2"])
