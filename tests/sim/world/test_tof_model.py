@@ -369,12 +369,9 @@ def test_saturation_follows_the_material():
         assert valid.mean() == (0.0 if saturated else 1.0), material
 
 
-def test_geom_ids_read_from_the_depth_render_equal_the_segmentation_render():
-    """The colour buffer of a depth render holds the segmentation (rendered_geom_ids); it must
-    match mujoco.Renderer's public segmentation render of the same view, pixel for pixel."""
-    scene = build_scene("office", 0)
-    camera = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg + 20.0)
-    model = scene.compile()
+def read_back_and_segmentation(model, camera) -> tuple[np.ndarray, np.ndarray]:
+    """rendered_geom_ids after a depth render of ``camera``'s view, and the geom id per pixel
+    of mujoco.Renderer's public segmentation render of it (-1 where no geom)."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     renderer = open_depth_renderer(model)
@@ -387,7 +384,15 @@ def test_geom_ids_read_from_the_depth_render_equal_the_segmentation_render():
     finally:
         renderer.close()
     is_geom = segmentation[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
-    expected = np.where(is_geom, segmentation[..., 0], -1)
+    return read_back, np.where(is_geom, segmentation[..., 0], -1)
+
+
+def test_geom_ids_read_from_the_depth_render_equal_the_segmentation_render():
+    """The colour buffer of a depth render holds the segmentation (rendered_geom_ids); it must
+    match mujoco.Renderer's public segmentation render of the same view, pixel for pixel."""
+    scene = build_scene("office", 0)
+    camera = add_probe_camera(scene.arena, scene.start_xy, scene.start_yaw_deg + 20.0)
+    read_back, expected = read_back_and_segmentation(scene.compile(), camera)
     assert len(np.unique(expected)) > 10  # many surfaces in view
     np.testing.assert_array_equal(read_back, expected)
 
@@ -404,19 +409,7 @@ def test_geom_ids_past_255_and_the_background_read_back_as_the_segmentation_rend
                            pos=[3.0, (col - 9.5) * 0.11, 0.55 + (row - 7) * 0.11])
     camera = add_probe_camera(root, (0.0, 0.0), 0.0)
     model = mujoco.MjModel.from_xml_string(root.to_xml_string())
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    renderer = open_depth_renderer(model)
-    try:
-        renderer.update_scene(data, camera=camera)
-        renderer.render()
-        read_back = rendered_geom_ids(renderer)
-        renderer.enable_segmentation_rendering()
-        segmentation = renderer.render()
-    finally:
-        renderer.close()
-    expected = np.where(segmentation[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM),
-                        segmentation[..., 0], -1)
+    read_back, expected = read_back_and_segmentation(model, camera)
     assert expected.max() > 280 and (expected == -1).sum() > 1000
     np.testing.assert_array_equal(read_back, expected)
 
