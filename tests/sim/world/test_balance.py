@@ -1,6 +1,7 @@
 """Pushes on the walking humanoid: the push API of RobotSimulation and push recovery by
 capture-point step adjustment (docs/walking.md, "Push recovery")."""
 
+import math
 from dataclasses import replace
 
 import mujoco
@@ -10,7 +11,8 @@ import pytest
 from sim.world.humanoid import TORSO_BODY_NAME
 from sim.world.walking import GAIT_PRESETS, RobotSimulation
 from sim.world.walking.counterbalance import Counterbalance
-from sim.world.walking.footsteps import LEFT, RIGHT, FootstepPlanner, Pose2D
+from sim.world.walking.capture_point import CapturePointStepper
+from sim.world.walking.footsteps import LEFT, RIGHT, SIDE_SIGN, FootstepPlanner, Pose2D
 from sim.world.walking import push_recovery
 from sim.world.walking.push_recovery import (DIRECTIONS_DEG, HEADING_TOLERANCE_DEG,
                                              LATERAL_TOLERANCE_M, push_trial)
@@ -255,6 +257,38 @@ def test_the_first_step_from_standing_leads_with_the_foot_on_the_side_of_the_tur
     planner.set_command(0.05, turn_rad, 0.0)
     planner.update(0.0, 3.0)
     assert planner.current_step.swing_side == lead
+
+
+@pytest.mark.parametrize("heading_rad", [0.0, 0.5])
+def test_a_footstep_moves_at_most_its_limits_and_never_across_the_support_foot(model,
+                                                                              heading_rad):
+    """CapturePointStepper's limits on the move of a step under way, in the support foot's
+    frame (forward, left) and back to the world: forward and back at most ``max_forward_m``
+    (8 cm), away from the support foot at most ``max_outward_m`` (8 cm), towards it no nearer
+    than ``min_step_width_m`` (8 cm from it); smaller moves pass unchanged."""
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, heading_rad), 0.5, 0.2, 0.09, 0.03, 0.0,
+                              path_return_m=0.02)
+    planner.set_command(0.05, 0.0, 0.0)
+    planner.update(0.0, 3.0)
+    planner.update(1.0, 3.0)                    # second step, mid-swing
+    step = planner.current_step
+    support = planner.feet_landed[step.support_side]
+    c, s = math.cos(support.yaw), math.sin(support.yaw)
+    outward = SIDE_SIGN[step.swing_side]        # + left when the swing foot is the left one
+    width = outward * (-s * (step.planned_swing_to.x - support.x)
+                       + c * (step.planned_swing_to.y - support.y))
+    assert width > 0.08
+    stepper = CapturePointStepper(model, 0.3, 0.01, 2.0)
+
+    def moved(forward, left):
+        world = stepper._limited(np.array([forward, left]), step, planner, c, s)
+        return c * world[0] + s * world[1], -s * world[0] + c * world[1]  # back to the foot's
+
+    assert moved(0.03, outward * 0.02) == pytest.approx((0.03, outward * 0.02))
+    assert moved(1.0, 0.0) == pytest.approx((0.08, 0.0))
+    assert moved(-1.0, 0.0) == pytest.approx((-0.08, 0.0))
+    assert moved(0.0, outward * 1.0) == pytest.approx((0.0, outward * 0.08))
+    assert moved(0.0, -outward * 1.0) == pytest.approx((0.0, -outward * (width - 0.08)))
 
 
 def test_planner_moves_the_step_under_way_and_returns_to_the_path():
