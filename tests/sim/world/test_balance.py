@@ -3,6 +3,7 @@ capture-point step adjustment (docs/walking.md, "Push recovery")."""
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -87,6 +88,25 @@ def test_a_2ns_push_is_survived_and_the_commanded_path_recovered(model, gait, di
     assert abs(trial.heading_error_deg) <= HEADING_TOLERANCE_DEG, trial
     assert abs(trial.lateral_offset_m) <= LATERAL_TOLERANCE_M, trial
     assert trial.recovered
+
+
+def test_each_push_direction_points_where_its_name_says():
+    """Directions in the robot's frame: forward +x, left +y; a two-word name is halfway."""
+    unit = {"forward": (1.0, 0.0), "backward": (-1.0, 0.0), "left": (0.0, 1.0),
+            "right": (0.0, -1.0)}
+    for name, degrees in DIRECTIONS_DEG.items():
+        x, y = np.sum([unit[word] for word in name.split("-")], axis=0)
+        assert 0.0 <= degrees < 360.0
+        assert math.degrees(math.atan2(y, x)) % 360.0 == pytest.approx(degrees), name
+    assert len(DIRECTIONS_DEG) == 8
+
+
+def test_the_walking_document_states_what_recovered_means():
+    document = " ".join((Path(__file__).resolve().parents[3] / "docs" / "walking.md")
+                        .read_text().split())
+    assert (f"its torso's heading is within {HEADING_TOLERANCE_DEG:g}° of the start heading and "
+            f"its mean lateral offset from the commanded straight line within "
+            f"{LATERAL_TOLERANCE_M * 100:g} cm") in document
 
 
 @pytest.mark.parametrize("fell, heading_deg, lateral_m, recovered", [
