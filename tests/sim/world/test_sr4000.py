@@ -234,14 +234,14 @@ def test_even_subframes_interpolate_the_mid_exposure_pose():
         for t in sensor.exposure_times(0):
             data.time = t
             data.mocap_pos[0] = [0.0, t, 0.55]
-                # Turning too, at 100 degrees a second about the vertical.
+            # Turning too, at 100 degrees a second about the vertical.
             data.mocap_quat[0] = Rotation.from_euler("z", 100.0 * t, degrees=True).as_quat(
                 scalar_first=True)
             sensor.expose(data)
         frame = sensor.read_frame(0)
     middle = params.integration_time_s / 2
     assert frame.cam_pos[1] == pytest.approx(middle)
-    # The camera's image right is the body's -y (add_probe_camera).
+    # The body turned as far as at the middle of the exposure, the camera fixed on it.
     turned = Rotation.from_euler("z", 100.0 * middle, degrees=True).as_matrix()
     np.testing.assert_allclose(frame.cam_mat, turned @ frame_at_rest, atol=1e-9)
 
