@@ -9,6 +9,7 @@ import hashlib
 import math
 import os
 import re
+from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -335,3 +336,24 @@ def test_the_robot_walks_on_a_3_degree_slope_with_5_mm_bumps(direction_deg):
     robot.run(4.0)
     assert robot.fall is None
     assert robot.torso_pose()[0][0] > 0.25
+
+
+# -- documentation ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_scenes_document_tabulates_each_parameter_its_default_and_bounds(name):
+    """docs/scenes.md's table of each scene: a row per parameter, in the code's order, with
+    its default and the bounds a value is accepted within (the code refuses a value beyond
+    them; a change of either fails here until the document says it)."""
+    document = (Path(__file__).resolve().parents[3] / "docs" / "scenes.md").read_text()
+    section = document.split(f"\n### {name}\n", 1)[1]
+    table = section.split("| parameter | default | bounds | meaning |\n", 1)[1]
+    rows = [row.split(" | ") for row in table.split("\n\n", 1)[0].splitlines()[1:]]
+    fields = [f for f in dataclasses.fields(SCENES[name]()) if "within" in f.metadata]
+    assert [row[0] for row in rows] == [f"| `{f.name}`" for f in fields]
+
+    for row, field in zip(rows, fields):
+        assert ast.literal_eval(row[1]) == field.default, field.name
+        bounds = re.match(r"(each )?(-?[0-9.]+)-(-?[0-9.]+)(,|$)", row[2])
+        assert bounds and bool(bounds[1]) == (field.metadata["kind"] == "positions"), field.name
+        assert (float(bounds[2]), float(bounds[3])) == field.metadata["within"], field.name
