@@ -11,8 +11,8 @@ import pytest
 
 from sim.world.humanoid import TORSO_BODY_NAME
 from sim.world.walking import GAIT_PRESETS, RobotSimulation
-from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.capture_point import CapturePointStepper
+from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.footsteps import LEFT, RIGHT, SIDE_SIGN, FootstepPlanner, Pose2D
 from sim.world.walking import push_recovery
 from sim.world.walking.push_recovery import (DIRECTIONS_DEG, HEADING_TOLERANCE_DEG,

@@ -128,7 +128,10 @@ def test_the_sensor_document_gives_the_models_defaults_and_the_high_noise_preset
     the high_noise preset's values; a change of either fails here until the document says it."""
     document = " ".join(SENSOR_DOCUMENT.read_text().split())
     worn = TOF_PRESETS["high_noise"]
-    mm = lambda metres: f"{metres * 1e3:g} mm"  # noqa: E731
+
+    def mm(metres: float) -> str:
+        return f"{metres * 1e3:g} mm"
+
     for phrase in (
             f"Default amplitude {mm(DEFAULT.wiggle_amplitude_m)} (the absolute-accuracy bound)",
             f"`noise_sigma_ref_m` {mm(DEFAULT.noise_sigma_ref_m)} (the datasheet's",
@@ -196,7 +199,7 @@ def test_the_noiseless_preset_reports_any_rendered_depth_unchanged():
     """Nearer than the datasheet's range, beyond the unambiguous range, tilted: all reported
     as rendered, all valid."""
     rays = pixel_rays()
-    depth = (3.0 / (rays @ np.array([0.6, 0.0, 1.0]))).astype(np.float32)  # 1.9-5.9 m
+    depth = (3.0 / (rays @ np.array([0.6, 0.0, 1.0]))).astype(np.float32)  # tilted, 2.4-3.9 m
     depth[:20] = 0.05
     depth[-20:] = 7.3
     reported, valid = ToFModel(TOF_PRESETS["noiseless"], SR4000_INTRINSICS,
