@@ -155,7 +155,7 @@ def test_the_sensor_document_gives_the_models_defaults_and_the_high_noise_preset
     assert worn.noise_sigma_ref_m == pytest.approx(3 * DEFAULT.noise_sigma_ref_m)
 
 
-def pixel_rays(k=SR4000_INTRINSICS) -> np.ndarray:
+def camera_frame_rays(k=SR4000_INTRINSICS) -> np.ndarray:
     """(H, W, 3) rays (x_n, y_n, 1) of the pinhole: a point at planar depth z is z times its
     pixel's ray (x right, y down, z ahead)."""
     x, y = np.meshgrid((np.arange(k.width) - k.cx) / k.fx, (np.arange(k.height) - k.cy) / k.fy)
@@ -168,7 +168,7 @@ def test_incidence_is_the_angle_between_each_ray_and_a_tilted_walls_normal(norma
     of the angle between each pixel's ray and the wall's normal (a head-on wall, the other
     tests' scene, has no depth gradient and cannot tell the gradient's scale or sign)."""
     model = ToFModel(DEFAULT, SR4000_INTRINSICS)
-    rays = pixel_rays()
+    rays = camera_frame_rays()
     unit = np.array(normal) / np.linalg.norm(normal)
     depth = 2.0 * unit[2] / (rays @ unit)  # the plane through (0, 0, 2 m)
     expected = np.abs(rays @ unit) / np.linalg.norm(rays, axis=-1)
@@ -198,7 +198,7 @@ def test_reported_ranges_are_quantized_to_14_bits_of_the_unambiguous_range():
 def test_the_noiseless_preset_reports_any_rendered_depth_unchanged():
     """Nearer than the datasheet's range, beyond the unambiguous range, tilted: all reported
     as rendered, all valid."""
-    rays = pixel_rays()
+    rays = camera_frame_rays()
     depth = (3.0 / (rays @ np.array([0.6, 0.0, 1.0]))).astype(np.float32)  # tilted, 2.4-3.9 m
     depth[:20] = 0.05
     depth[-20:] = 7.3
