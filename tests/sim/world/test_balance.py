@@ -131,6 +131,23 @@ def test_step_adjustment_recovers_3ns_pushes_that_topple_the_plain_controller(mo
     assert adjusted.recovered, adjusted
 
 
+@pytest.mark.parametrize("start_yaw_deg", [120.0, -75.0])
+@pytest.mark.parametrize("gait, direction, seed", [("paper_like", "forward", 1),
+                                                   ("paper_like", "backward", 0)])
+def test_a_robot_facing_any_heading_recovers_those_pushes_alike(start_yaw_deg, gait, direction,
+                                                                 seed):
+    """The stepper measures the capture point in the support foot's frame and moves the foot in
+    the world's; push_trial measures the heading and lateral offset from the start pose. Both
+    turn with the robot: facing 120 or -75 degrees, the pushes above end as they do facing +x
+    (a rotation the wrong way round in either topples the robot or puts it off its path)."""
+    turned = compile_world(assemble(start_yaw_deg=start_yaw_deg))
+    plain = push_trial(turned, gait, 3.0, DIRECTIONS_DEG[direction], seed=seed,
+                       step_adjustment=False)
+    adjusted = push_trial(turned, gait, 3.0, DIRECTIONS_DEG[direction], seed=seed)
+    assert plain.fell
+    assert adjusted.recovered, adjusted
+
+
 def test_push_trials_are_deterministic(model):
     first = push_trial(model, "default", 2.0, 45.0, seed=3)
     assert first == push_trial(model, "default", 2.0, 45.0, seed=3)
