@@ -182,11 +182,15 @@ def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
     the scene's walk in :data:`WALK_SCENARIOS`, after the standing start, grouped by gait cycle
     (:func:`simulated_scenes`; 0: no walk). Each figure is the median ms per frame with the
     reference analysed once per scene or cycle (:func:`time_method`), one thread, on the wall
-    clock and in process CPU time (which other jobs sharing the machine disturb less).
+    clock and in process CPU time (which other jobs sharing the machine disturb less); and,
+    on the wall clock, without the trust check every estimate of a run goes through (the
+    methods' own cost; ``_own``), ``t2fuzzy_paper`` (the paper's stages without the
+    refinements) too.
 
     Returns:
         {"synthetic": {generator or "all generators": {"t2fuzzy", "sift", "t2fuzzy_cpu",
-         "sift_cpu"}}, "walking": {scene: {"t2fuzzy", "t2fuzzy_cpu"}}}, milliseconds.
+         "sift_cpu", "t2fuzzy_own", "t2fuzzy_paper_own", "sift_own"}}, "walking": {scene:
+         {"t2fuzzy", "t2fuzzy_cpu", "t2fuzzy_own", "t2fuzzy_paper_own"}}}, milliseconds.
     """
     from sim.harness.scenario import load_scenario
     from stabilizer.testing import CORPUS_GENERATORS, corpus_frames
@@ -194,6 +198,9 @@ def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
     def timed(method, scenes):
         return {method: frame_ms(method, scenes),
                 f"{method}_cpu": frame_ms(method, scenes, time.process_time)}
+
+    def own(methods, scenes):
+        return {f"{method}_own": frame_ms(method, scenes, checked=False) for method in methods}
 
     def medians(times):
         return {key: float(np.median(values)) for key, values in times.items()}
@@ -209,7 +216,8 @@ def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
         if generator in CORPUS_GENERATORS:
             scenes = [corpus_frames(generator, seed + index, frames_per_scene)[:2]
                       for index in range(n_scenes)]
-            times = {**timed("t2fuzzy", scenes), **timed("sift", scenes)}
+            times = {**timed("t2fuzzy", scenes), **timed("sift", scenes),
+                     **own(("t2fuzzy", "t2fuzzy_paper", "sift"), scenes)}
             for key, values in times.items():
                 every_frame.setdefault(key, []).extend(values)
         else:  # the medians over every frame of the corpus
@@ -218,16 +226,21 @@ def t2fuzzy_corpus_benchmark(n_scenes: int = 4, frames_per_scene: int = 10,
         print(f"{generator:>16}: t2fuzzy {ms['t2fuzzy']:6.2f} ({ms['t2fuzzy_cpu']:5.2f}) ms   "
               f"sift {ms['sift']:6.2f} ({ms['sift_cpu']:5.2f}) ms   sift / t2fuzzy "
               f"{ms['sift'] / ms['t2fuzzy']:5.2f} ({ms['sift_cpu'] / ms['t2fuzzy_cpu']:5.2f})")
+        print(f"{'':>16}  without the check: t2fuzzy {ms['t2fuzzy_own']:6.2f} ms   "
+              f"t2fuzzy_paper {ms['t2fuzzy_paper_own']:5.2f} ms   sift {ms['sift_own']:5.2f} ms   "
+              f"sift / t2fuzzy {ms['sift_own'] / ms['t2fuzzy_own']:5.2f}")
     if walk_frames > 0:
         print(f"simulated walks: {walk_frames} frames per scene (target: t2fuzzy <= "
               f"{WALK_TARGET_MS} ms)")
     for scene, scenario in WALK_SCENARIOS.items() if walk_frames > 0 else ():
         if load_scenario(scenario).scene != scene:
             raise ValueError(f"scenario {scenario!r} no longer walks the {scene} scene")
-        ms = figures["walking"][scene] = medians(timed("t2fuzzy", simulated_scenes(
-            scenario, walk_frames)))
+        scenes = simulated_scenes(scenario, walk_frames)
+        ms = figures["walking"][scene] = medians({**timed("t2fuzzy", scenes),
+                                                  **own(("t2fuzzy", "t2fuzzy_paper"), scenes)})
         print(f"{scene:>16}: t2fuzzy {ms['t2fuzzy']:6.2f} ({ms['t2fuzzy_cpu']:5.2f}) ms   "
-              f"({scenario})")
+              f"({scenario}); without the check: t2fuzzy {ms['t2fuzzy_own']:5.2f} ms   "
+              f"t2fuzzy_paper {ms['t2fuzzy_paper_own']:5.2f} ms")
     print(_load())
     return figures
 
@@ -630,14 +643,20 @@ def bench_markdown(figures: dict) -> str:
               "", "t2fuzzy against SIFT on the varied synthetic corpus "
               "(`python -m sim.harness.bench t2fuzzy-corpus`; "
               "stabilizer.testing.CORPUS_GENERATORS) and on walking frames of every scene; "
-              "median ms per frame, wall clock (process CPU time):", "",
-              "| Frames | t2fuzzy ms | SIFT ms | SIFT / t2fuzzy |", "|---|---|---|---|"]
+              "median ms per frame, wall clock (process CPU time); then without the trust "
+              "check, wall clock, with the paper's stages alone (t2fuzzy_paper) beside them:",
+              "", "| Frames | t2fuzzy ms | SIFT ms | SIFT / t2fuzzy | without the check: "
+              "t2fuzzy ms | t2fuzzy_paper ms | SIFT ms | SIFT / t2fuzzy |",
+              "|---|---|---|---|---|---|---|---|"]
     for generator, ms in figures["t2fuzzy_corpus"]["synthetic"].items():
         lines.append(f"| {generator} | {ms['t2fuzzy']:.2f} ({ms['t2fuzzy_cpu']:.2f}) | "
                      f"{ms['sift']:.2f} ({ms['sift_cpu']:.2f}) | "
-                     f"{ms['sift'] / ms['t2fuzzy']:.2f} |")
+                     f"{ms['sift'] / ms['t2fuzzy']:.2f} | {ms['t2fuzzy_own']:.2f} | "
+                     f"{ms['t2fuzzy_paper_own']:.2f} | {ms['sift_own']:.2f} | "
+                     f"{ms['sift_own'] / ms['t2fuzzy_own']:.2f} |")
     for scene, ms in figures["t2fuzzy_corpus"]["walking"].items():
-        lines.append(f"| walking, {scene} | {ms['t2fuzzy']:.2f} ({ms['t2fuzzy_cpu']:.2f}) | | |")
+        lines.append(f"| walking, {scene} | {ms['t2fuzzy']:.2f} ({ms['t2fuzzy_cpu']:.2f}) | | "
+                     f"| {ms['t2fuzzy_own']:.2f} | {ms['t2fuzzy_paper_own']:.2f} | | |")
     lines.append("")
     return "\n".join(lines)
 

@@ -13,11 +13,41 @@ def test_corpus_benchmark_times_both_methods_on_every_generator(capsys):
     assert set(figures["synthetic"]) == {*CORPUS_GENERATORS, "all generators"}
     assert figures["walking"] == {}
     for generator, ms in figures["synthetic"].items():
-        assert set(ms) == {"t2fuzzy", "sift", "t2fuzzy_cpu", "sift_cpu"}
+        assert set(ms) == {"t2fuzzy", "sift", "t2fuzzy_cpu", "sift_cpu", "t2fuzzy_own",
+                           "t2fuzzy_paper_own", "sift_own"}
         assert all(np.isfinite(value) and 0 < value < 1e4 for value in ms.values()), generator
     printed = capsys.readouterr().out
     assert "sift / t2fuzzy" in printed and "load average" in printed
     assert all(f"{generator}: t2fuzzy" in printed for generator in figures["synthetic"])
+    assert printed.count("without the check: t2fuzzy") == len(figures["synthetic"])
+
+
+def test_the_corpus_benchmark_times_the_methods_with_and_without_the_check(monkeypatch):
+    # Each timing tagged with what was timed: method, clock and whether the check ran.
+    def tagged(method, scenes, clock=bench.time.perf_counter, checked=True):
+        cpu = clock is bench.time.process_time
+        return [{"t2fuzzy": 1.0, "t2fuzzy_paper": 2.0, "sift": 4.0}[method]
+                + 10.0 * cpu + 100.0 * checked]
+
+    monkeypatch.setattr(bench, "frame_ms", tagged)
+    monkeypatch.setattr(bench, "simulated_scenes", lambda scenario, n: [])
+    figures = bench.t2fuzzy_corpus_benchmark(n_scenes=1, frames_per_scene=1, walk_frames=1)
+    for ms in [*figures["synthetic"].values(), *figures["walking"].values()]:
+        assert ms["t2fuzzy"] == 101.0 and ms["t2fuzzy_cpu"] == 111.0
+        assert ms["t2fuzzy_own"] == 1.0 and ms["t2fuzzy_paper_own"] == 2.0
+    for ms in figures["synthetic"].values():
+        assert ms["sift"] == 104.0 and ms["sift_cpu"] == 114.0 and ms["sift_own"] == 4.0
+    markdown = bench.bench_markdown({
+        "date": "d", "machine": "m", "load": "l", "quick": False,
+        "stabilizer_ms_synthetic": {}, "stabilizer_ms_simulated": {},
+        "stabilizer_ms_synthetic_unchecked": {}, "stabilizer_ms_simulated_unchecked": {},
+        "physics_realtime_factor": 1.0, "render_tof_fps": 1.0, "pipeline_realtime_factor": {},
+        "record_realtime_factor": 1.0, "sequence_mb": 1.0,
+        "rescore_t2fuzzy_realtime_factor": 1.0, "rescore_t2fuzzy_cpu_realtime_factor": 1.0,
+        "score_workers1_s": 2.0, "score_workers2_s": 1.0, "t2fuzzy_corpus": figures})
+    assert "| clutter | 101.00 (111.00) | 104.00 (114.00) | 1.03 | 1.00 | 2.00 | 4.00 | 4.00 |" \
+        in markdown
+    assert "| walking, corridor | 101.00 (111.00) | | | 1.00 | 2.00 | | |" in markdown
 
 
 def test_the_walking_scenarios_cover_every_scene():
