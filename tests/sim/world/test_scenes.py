@@ -357,3 +357,50 @@ def test_the_scenes_document_tabulates_each_parameter_its_default_and_bounds(nam
         bounds = re.match(r"(each )?(-?[0-9.]+)-(-?[0-9.]+)(,|$)", row[2])
         assert bounds and bool(bounds[1]) == (field.metadata["kind"] == "positions"), field.name
         assert (float(bounds[2]), float(bounds[3])) == field.metadata["within"], field.name
+
+
+# -- fixed structures -------------------------------------------------------------------------
+def _built(build):
+    """The footprints a structure reserves, the xy box around the box geoms it builds (MuJoCo's
+    world poses), and the compiled model and data: ``build(structure)`` builds it."""
+    from sim.world.scenes.arena import Arena
+    from sim.world.scenes.placement import Placement
+    from sim.world.scenes.structure import Structure
+
+    arena = Arena("structures")
+    placement = Placement(np.zeros((2, 2)), np.random.default_rng(0))
+    build(Structure(arena, placement))
+    model = mujoco.MjModel.from_xml_string(arena.root.to_xml_string(),
+                                           arena.root.get_assets())
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+    corners = np.concatenate([
+        data.geom_xpos[geom] + (signs * model.geom_size[geom]) @ data.geom_xmat[geom].reshape(3, 3).T
+        for geom in range(model.ngeom) if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_BOX])
+    box = np.concatenate([corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)])
+    return placement._footprints, box, model, data
+
+
+@pytest.mark.parametrize("start, end", [((1.0, 2.0), (4.0, 2.0)), ((0.5, -1.0), (2.5, 2.0))])
+def test_a_wall_reserves_the_floor_it_stands_on(start, end):
+    (reserved,), built, _, _ = _built(lambda structure: structure.wall(start, end))
+    np.testing.assert_allclose(reserved, built, atol=1e-9)
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 90.0, 30.0])
+def test_a_doorway_reserves_its_frame_and_closed_leaf(yaw_deg):
+    """Furniture keeps off a doorway: its reserved footprint is the frame's, jambs included."""
+    (reserved,), built, _, _ = _built(lambda structure: structure.doorway((1.0, -2.0), yaw_deg))
+    np.testing.assert_allclose(reserved, built, atol=1e-9)
+
+
+def test_a_rooms_ceiling_lights_hang_1_m_inside_its_walls():
+    """Lights 3 m apart from 1 m inside the walls, none nearer than 1 m to them: in this room,
+    9 m across, a fourth light 3 m past the third would hang outside the walls."""
+    xmin, xmax, ymin, ymax = -3.0, 6.0, -2.0, 7.0
+    _, _, model, data = _built(lambda structure: structure.room(xmin, xmax, ymin, ymax))
+    lights = data.light_xpos
+    assert len(lights) == 3 * 3
+    assert lights[:, 0].min() == pytest.approx(xmin + 1) and lights[:, 0].max() <= xmax - 1
+    assert lights[:, 1].min() == pytest.approx(ymin + 1) and lights[:, 1].max() <= ymax - 1
