@@ -376,7 +376,8 @@ def _built(build):
     mujoco.mj_forward(model, data)
     signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
     corners = np.concatenate([
-        data.geom_xpos[geom] + (signs * model.geom_size[geom]) @ data.geom_xmat[geom].reshape(3, 3).T
+        data.geom_xpos[geom]
+        + (signs * model.geom_size[geom]) @ data.geom_xmat[geom].reshape(3, 3).T
         for geom in range(model.ngeom) if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_BOX])
     box = np.concatenate([corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)])
     return placement._footprints, box, model, data
