@@ -361,9 +361,11 @@ def test_the_scenes_document_tabulates_each_parameter_its_default_and_bounds(nam
 
 # -- fixed structures -------------------------------------------------------------------------
 def _built(build):
-    """The footprints a structure reserves, the xy box around the box geoms it builds (MuJoCo's
-    world poses), and the compiled model and data: ``build(structure)`` builds it."""
+    """The footprints a structure reserves, the xy box around the geoms it builds (the floor
+    left out; :func:`~sim.world.scenes.lane.compiled_geom_boxes`), and the compiled model and
+    data: ``build(structure)`` builds it."""
     from sim.world.scenes.arena import Arena
+    from sim.world.scenes.lane import compiled_geom_boxes
     from sim.world.scenes.placement import Placement
     from sim.world.scenes.structure import Structure
 
@@ -373,13 +375,9 @@ def _built(build):
     model = mujoco.MjModel.from_xml_string(arena.root.to_xml_string(),
                                            arena.root.get_assets())
     data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
-    corners = np.concatenate([
-        data.geom_xpos[geom]
-        + (signs * model.geom_size[geom]) @ data.geom_xmat[geom].reshape(3, 3).T
-        for geom in range(model.ngeom) if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_BOX])
-    box = np.concatenate([corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)])
+    mujoco.mj_forward(model, data)  # the lights' world positions too
+    boxes, _ = compiled_geom_boxes(model)
+    box = np.concatenate([boxes[:, :2].min(axis=0), boxes[:, 3:5].max(axis=0)])
     return placement._footprints, box, model, data
 
 
