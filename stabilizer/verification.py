@@ -13,6 +13,7 @@ docs/method.md, section 11.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -94,6 +95,17 @@ class VerificationParams:
         clip_factor: edge responses (the Laplacian of the smoothed disparity) are clipped to
             +- this many times their median magnitude, so that a few strong depth steps (near
             objects: disparity grows as 1 / depth) do not outweigh all the others. Default 5.
+        edge_floor_levels: where the clip limit (``clip_factor`` times the median response)
+            is below the response of a depth step this many gray levels deep
+            (:func:`step_response`), the tests that vouch for an estimate (its correlation, the
+            optimum near it and whether the frames moved) count no response weaker than that.
+            The clip then gives every response the weight of the strongest depth steps, and on
+            a surface that slopes away from the camera the quantized disparity steps by one
+            level along contour lines, which slide over the surface as the camera walks along
+            it and line up at motions the camera did not make. The tests that look for doubt
+            (rivals, ridges, the far depths) count every response: a far surface's real depth
+            steps are a level or two deep. Default 1.5 (docs/method.md, section 11,
+            "Contours"); 0: every test counts every response.
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). At most 1000
@@ -177,6 +189,7 @@ class VerificationParams:
     moved_depth_share: float = 0.01
     sigma_px: float = 2.0
     clip_factor: float = 5.0
+    edge_floor_levels: float = 1.5
     optimum_iterations: int = 10
     full_resolution_offset_deg: float = 1.5
     full_resolution_travel_deg: float = 2.5
@@ -203,6 +216,7 @@ class VerificationParams:
             check_number(name, getattr(self, name), 0.0)
         check_number("sigma_px", self.sigma_px, 0.0, MAX_SIGMA_PX, open_low=True)
         check_number("clip_factor", self.clip_factor, 0.0, open_low=True)
+        check_number("edge_floor_levels", self.edge_floor_levels, 0.0, 255.0)
         check_integer("optimum_iterations", self.optimum_iterations, 1, MAX_ITERATIONS)
         for name in ("full_resolution_offset_deg", "full_resolution_travel_deg",
                      "max_far_offset_px"):
@@ -224,7 +238,16 @@ class VerificationParams:
 
 def edge_image(image: np.ndarray, sigma_px: float,
                clip_factor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Clipped Laplacian of the Gaussian-smoothed disparity, and where it is measured.
+    """Clipped Laplacian of the Gaussian-smoothed disparity, and where it is measured:
+    :func:`edge_images` without a floor."""
+    edges, _, measured = edge_images(image, sigma_px, clip_factor, 0.0)
+    return edges, measured
+
+
+def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
+                floor_levels: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clipped Laplacian of the Gaussian-smoothed disparity, the same without its weak
+    responses, and where they are measured.
 
     The smoothing is a normalised convolution (the blurred image divided by the blurred valid
     mask), so invalid pixels (0) do not leak in as a step; pixels closer than 1.5 ``sigma_px``
@@ -239,11 +262,19 @@ def edge_image(image: np.ndarray, sigma_px: float,
     clip_factor : float
         Responses are clipped to +- ``clip_factor`` times their median magnitude over the
         measured pixels (at least +- :data:`MIN_CLIP`).
+    floor_levels : float
+        When the clip limit is below ``floor_levels`` times the largest response of a
+        one-level depth step (:func:`step_response`), the responses whose magnitude (before
+        the clip) is below that too are 0 in ``strong``: the clip would give them the weight
+        of the strongest depth steps.
 
     Returns
     -------
     edges : (H, W) float32 ndarray
         The clipped response, 0 where it is not measured.
+    strong : (H, W) float32 ndarray
+        ``edges`` without the weak responses; ``edges`` itself when the clip limit is not
+        below the floor.
     measured : (H, W) uint8 ndarray
         1 where the response is measured, else 0.
     """
@@ -262,7 +293,28 @@ def edge_image(image: np.ndarray, sigma_px: float,
     responses = np.abs(laplacian[::2, ::2][measured[::2, ::2].view(bool)])
     scale = clip_factor * _median(responses) if responses.size else 0.0
     limit = max(scale, MIN_CLIP)
-    return np.clip(laplacian, -limit, limit, out=laplacian), measured
+    floor = floor_levels * step_response(sigma_px)
+    # Below the floor, the clip gives a weak response the weight of the strongest steps.
+    weak = np.abs(laplacian) < floor if limit < floor else None
+    edges = np.clip(laplacian, -limit, limit, out=laplacian)
+    if weak is None:
+        return edges, edges, measured
+    strong = edges.copy()
+    strong[weak] = 0.0
+    return edges, strong, measured
+
+
+@functools.lru_cache(maxsize=8)
+def step_response(sigma_px: float) -> float:
+    """The largest magnitude of :func:`edge_images`' Laplacian (before its clip) across a
+    straight depth step of one gray level: about 0.225 at ``sigma_px`` 2."""
+    radius = math.ceil(3 * sigma_px)
+    step = np.full((4 * radius + 8, 4 * radius + 8), 100, np.uint8)
+    step[:, step.shape[1] // 2:] = 101
+    gaussian = cv2.getGaussianKernel(2 * radius + 1, sigma_px, cv2.CV_32F)
+    laplacian = cv2.Laplacian(cv2.sepFilter2D(step, cv2.CV_32F, gaussian, gaussian),
+                              cv2.CV_32F, ksize=3)
+    return float(np.abs(laplacian[:, radius:-radius]).max())
 
 
 def _step_reach(sigma_px: float) -> np.ndarray:
@@ -475,7 +527,9 @@ class Verifier:
         self._last_measured: CurrentEdges | None = None  # see measure
         self._reference_disparity = reference
         self._reference_range = disparity_range(reference)
-        self._reference = edge_image(reference, params.sigma_px, params.clip_factor)
+        edges, strong, measured = edge_images(reference, params.sigma_px, params.clip_factor,
+                                              params.edge_floor_levels)
+        self._reference, self._reference_strong = (edges, measured), (strong, measured)
         self._reference_half = _half_resolution(*self._reference)
         half = self._reference_half[0]
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
@@ -600,11 +654,13 @@ class Verifier:
         """
         return self._ecc(self._reference_half, current_half, motion, 0.5)
 
-    def full_resolution_optimum(self, current_edges: tuple[np.ndarray, np.ndarray],
-                                motion: Motion) -> Motion | None:
-        """:meth:`local_optimum` on the full-resolution edge images (:func:`edge_image` of
-        the current frame), at four times the cost."""
-        return self._ecc(self._reference, current_edges, motion, 1.0)
+    def full_resolution_optimum(self, current: CurrentEdges, motion: Motion,
+                                strong: bool = False) -> Motion | None:
+        """:meth:`local_optimum` on the full-resolution edge images, at four times the cost;
+        ``strong``: on the edge images without their weak responses (``edge_floor_levels``)."""
+        if strong:
+            return self._ecc(self._reference_strong, current.strong, motion, 1.0)
+        return self._ecc(self._reference, current.edges, motion, 1.0)
 
     def _ecc(self, reference_edges: tuple[np.ndarray, np.ndarray],
              current_edges: tuple[np.ndarray, np.ndarray], motion: Motion,
@@ -643,11 +699,14 @@ class Verifier:
         last = self._last_measured
         if last is not None and np.array_equal(last.disparity, current):
             return last
-        edges = edge_image(current, self.params.sigma_px, self.params.clip_factor)
-        null_correlation, _ = structure_correlation(*self._reference, *edges)
+        params = self.params
+        edges, strong, measured = edge_images(current, params.sigma_px, params.clip_factor,
+                                              params.edge_floor_levels)
+        null_correlation, _ = structure_correlation(*self._reference_strong, strong, measured)
         # A copy: the caller may reuse its array for the next frame.
-        self._last_measured = CurrentEdges(current.copy(), noise_level(current), edges,
-                                           _half_resolution(*edges), null_correlation)
+        self._last_measured = CurrentEdges(current.copy(), noise_level(current),
+                                           (edges, measured), (strong, measured),
+                                           _half_resolution(edges, measured), null_correlation)
         return self._last_measured
 
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
@@ -673,19 +732,20 @@ class Verifier:
         if not motion.ok:
             return motion
         params = self.params
-        current_edges, current_half = current.edges, current.half
+        current_half = current.half
         null_correlation = current.null_correlation
-        correlation, overlap = structure_correlation(*self._reference, *current_edges, motion)
+        correlation, overlap = structure_correlation(*self._reference_strong, *current.strong,
+                                                     motion)
         optimum = self.local_optimum(current_half, motion)
         if optimum is not None:  # the half-resolution climb may stop short of the optimum
             turn = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
             if turn > params.full_resolution_offset_deg:
-                optimum = self.full_resolution_optimum(current_edges, optimum) or optimum
+                optimum = self.full_resolution_optimum(current, optimum, strong=True) or optimum
         if optimum is None:  # no optimum found: the estimate is judged by itself
             optimum, optimum_correlation = motion, correlation
         else:
-            optimum_correlation, _ = structure_correlation(*self._reference, *current_edges,
-                                                           optimum)
+            optimum_correlation, _ = structure_correlation(*self._reference_strong,
+                                                           *current.strong, optimum)
         offset_deg = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
         offset_px = math.hypot(optimum.dx - motion.dx, optimum.dy - motion.dy)
         disagreement = self._depth_disagreement(current, motion)
@@ -722,8 +782,7 @@ class Verifier:
                                    verify_shift_correlation=rival.estimate_score,
                                    verify_ridge=rival.ridge)
         if failed is None:  # the search costs most of the check: only for what passed so far
-            rival = self._rival_candidate(current, motion, optimum, optimum_correlation,
-                                           beyond)
+            rival = self._rival_candidate(current, motion, optimum, beyond)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
@@ -808,7 +867,7 @@ class Verifier:
                                  motion.dy + float(turned[1])), here, score, ridge)
 
     def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
-                         optimum_correlation: float, beyond: bool) -> tuple[Motion, float] | None:
+                         beyond: bool) -> tuple[Motion, float] | None:
         """A motion at another rotation than ``motion`` that explains the frames about as well
         or better, or None.
 
@@ -819,7 +878,7 @@ class Verifier:
         its :meth:`local_optimum`, and also to its :meth:`full_resolution_optimum` when the
         half-resolution climb ends more than ``full_resolution_travel_deg`` from it. The better
         end beyond the offset limits of the estimate wins when it correlates better than the
-        estimate's optimum less ``candidate_margin`` (two peaks
+        estimate's optimum less ``candidate_margin``, both on every edge response (two peaks
         that close cannot be told apart); against an estimate outside the searched angles, less
         ``outside_margin``: a turn beyond the walking range must explain the frames clearly
         better than one within it (a half turn can line up a point-symmetric object, say a
@@ -849,7 +908,7 @@ class Verifier:
             if travel > params.full_resolution_travel_deg:
                 # Astray at half resolution: the full-resolution climb may stay near the
                 # candidate.
-                ends.append(self.full_resolution_optimum(current.edges, candidate) or candidate)
+                ends.append(self.full_resolution_optimum(current, candidate) or candidate)
             current.candidate_ends = [[end, None] for end in ends]
         rivals = []
         for kept in current.candidate_ends:  # [end, its correlation once measured]
@@ -861,6 +920,7 @@ class Verifier:
         if not rivals:
             return None
         correlation, refined = max(rivals, key=lambda rival: rival[0])
+        optimum_correlation, _ = structure_correlation(*self._reference, *current.edges, optimum)
         margin = params.outside_margin if beyond else params.candidate_margin
         return (refined, correlation) if correlation > optimum_correlation - margin else None
 
@@ -909,7 +969,8 @@ class CurrentEdges:
     Attributes:
         disparity: the frame itself (uint8, 0 = invalid), for :func:`depth_disagreement`.
         noise: its :func:`noise_level`.
-        edges: the frame's :func:`edge_image` (response, measured mask).
+        edges: the frame's edge image (response, measured mask; :func:`edge_images`).
+        strong: the same without the weak responses (``edge_floor_levels``).
         half: the same at half resolution.
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
         candidate: the best motion of the search over the grid of angles
@@ -924,6 +985,7 @@ class CurrentEdges:
     disparity: np.ndarray
     noise: float
     edges: tuple[np.ndarray, np.ndarray]
+    strong: tuple[np.ndarray, np.ndarray]
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
     candidate: Motion | None = None

@@ -9,7 +9,7 @@ method, in the user's terms.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import cv2
 import numpy as np
@@ -23,7 +23,8 @@ from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (UNVERIFIED, VerificationParams, Verifier, _half_resolution,
                                      _median, depth_disagreement, disparity_range, edge_image,
-                                     noise_level, shared_verifier, structure_correlation)
+                                     edge_images, noise_level, shared_verifier, step_response,
+                                     structure_correlation)
 from tests.stabilizer.walking_frames import walking_frames
 
 METHODS = available_methods()
@@ -426,17 +427,21 @@ def test_a_candidate_whose_half_resolution_climb_goes_astray_is_climbed_at_full_
     seed 221): the grid's candidate, -10 degrees, climbs at half resolution to -4.2 degrees,
     within the estimate's offset limits, so the search found no rival; climbed at full
     resolution it stays at the truth, lines the edges up better than the estimate's optimum, and
-    fails the estimate as ambiguous."""
+    fails the estimate as ambiguous. (On the strong edges alone, which the default check's
+    test 2 weighs, the estimate correlates below ``min_correlation`` and fails there first;
+    the search for rivals counts every edge response, with the floor or without.)"""
     reference = stabilizer.depth_to_disparity(make_depth_scene(830496515, (129, 163),
                                                                n_objects=2, floor=True))
     truth, wrong = Motion(-9.02, -7.41, 12.42), Motion(-1.71, -5.65, 11.21)
     current = apply_motion(reference, truth)
-    checked = Verifier(reference)(current, wrong)
+    assert Verifier(reference)(current, wrong).diagnostics["verify_failed"] == "correlation"
+    every_edge = VerificationParams(edge_floor_levels=0.0)
+    checked = Verifier(reference, every_edge)(current, wrong)
     assert checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
     assert abs(rival.angle_deg - truth.angle_deg) < 0.5
     assert math.hypot(rival.dx - truth.dx, rival.dy - truth.dy) < 1.0
-    half_only = VerificationParams(full_resolution_travel_deg=math.inf)
+    half_only = replace(every_edge, full_resolution_travel_deg=math.inf)
     assert Verifier(reference, half_only)(current, wrong).ok
 
 
@@ -507,8 +512,8 @@ def test_methods_of_one_reference_share_one_check_and_each_frames_measurements(m
     other = scene(1, SR4000_SHAPE)
     assert Stabilizer(other, "ecc")._verifier is not first._verifier
     measured = []
-    measure_edges = verification.edge_image
-    monkeypatch.setattr(verification, "edge_image",
+    measure_edges = verification.edge_images
+    monkeypatch.setattr(verification, "edge_images",
                         lambda *args: measured.append(1) or measure_edges(*args))
     checked = [first.estimate(CURRENT), second.estimate(CURRENT.copy())]
     assert len(measured) == 1  # the current frame's edges, once for both methods
@@ -543,6 +548,101 @@ def test_edges_correlate_as_a_cosine_and_minus_1_where_no_edge_is_measured_in_bo
     assert structure_correlation(*edges, *negated)[0] == pytest.approx(-1.0)
     flat = edge_image(np.full_like(REFERENCE, 90), params.sigma_px, params.clip_factor)
     assert not flat[0].any() and structure_correlation(*edges, *flat) == (-1.0, 1.0)
+
+
+def test_a_one_level_step_responds_with_the_step_response_and_the_floor_is_in_its_units():
+    """step_response is the largest Laplacian of the smoothed frame across a one-level step; a
+    floor of 1.5 levels takes such a step out of the strong edges and keeps one of two levels,
+    as it is in the edge image."""
+    assert step_response(2.0) == pytest.approx(0.225, abs=0.001)
+    assert step_response(1.0) > step_response(2.0) > step_response(4.0)  # wider: weaker
+    for levels, kept in ((1, False), (2, True)):
+        frame = np.full((144, 176), 60, np.uint8)
+        frame[:, 88:] += levels
+        smoothed = cv2.GaussianBlur(frame.astype(np.float32), (13, 13), 2.0)
+        laplacian = cv2.Laplacian(smoothed, cv2.CV_32F, ksize=3)
+        assert np.abs(laplacian).max() == pytest.approx(levels * step_response(2.0), rel=1e-3)
+        edges, strong, measured = edge_images(frame, 2.0, 5.0, 1.5)
+        plain, plain_measured = edge_image(frame, 2.0, 5.0)
+        assert np.array_equal(edges, plain) and np.array_equal(measured, plain_measured)
+        assert plain.any() and bool(strong.any()) is kept
+        if kept:  # what passes the floor is unchanged
+            np.testing.assert_array_equal(strong[strong != 0], plain[strong != 0])
+
+
+def test_the_floor_applies_only_where_the_clip_limit_lies_below_it():
+    """On a noisy frame the median response is large: the clip limit lies above 1.5 one-level
+    steps, weak responses already weigh less than the strongest ones, and the strong edges are
+    the edges. Less noisy, the limit drops below the floor, and the weak responses go."""
+    rng = np.random.default_rng(5)
+    for noise, floored in ((4.0, False), (0.0, True)):
+        frame = noisy(CURRENT, rng, noise) if noise else CURRENT
+        edges, strong, measured = edge_images(frame, 2.0, 5.0, 1.5)
+        limit = 5.0 * np.median(np.abs(edge_images(frame, 2.0, 1e9, 0.0)[0][::2, ::2][
+            measured[::2, ::2] > 0]))
+        assert bool(limit < 1.5 * step_response(2.0)) is floored
+        assert (strong is not edges) is floored
+        if floored:
+            assert np.count_nonzero(strong) < np.count_nonzero(edges)
+
+
+def test_the_contours_of_a_sloping_surface_are_no_strong_edges_and_a_depth_step_on_it_is():
+    """A wall sloping away to the side: its quantized disparity steps by one level every 33
+    columns. Above the floor of 1.5 levels only the box's outline is left."""
+    columns = np.mgrid[0:144, 0:176][1]
+    wall = np.rint(36.0 + 0.03 * columns).astype(np.uint8)
+    contours, strong, _ = edge_images(wall, 2.0, 5.0, 1.5)
+    assert contours.any() and not strong.any()
+    wall[50:90, 60:120] += 12  # a box 12 levels nearer
+    _, strong, _ = edge_images(wall, 2.0, 5.0, 1.5)
+    # The smoothing (3 sigma) and the Laplacian reach 7 px from a step; at the frame's
+    # borders the slope is reflected into a crease.
+    outline = np.ones(wall.shape, bool)
+    outline[7:-7, 7:-7] = False
+    outline[43:97, 53:127] = True
+    outline[57:83, 67:113] = False
+    assert strong.any() and not strong[~outline].any()
+
+
+def test_an_estimate_that_lines_up_a_walls_disparity_contours_is_not_trusted():
+    """The office of scene seed 2058 (`default` gait, frames 883 and 897): a wall at a slant
+    fills the view above the floor, its disparity three levels deep, and walking towards it
+    slides its one-level contours sideways. `t2fuzzy` answered 32 px in x where the camera
+    moved 0.8 px; on every edge response the check's edges lined up best near its answer, and
+    it passed. On the strong edges only the floor's crease is left, which lines up as well
+    without any motion: the frames did not move, as far as the check can tell, and the
+    estimate fails. The truth fails too: the crease lines it up (0.90), but the search for
+    rival shifts, on every edge response, lines the contours up as well some 36 px away in x.
+    These frames do not pin x down, and the check says so."""
+    reference, current = walking_frames("office_2058", 883, 897)
+    estimate, truth = Motion(-1.369, 32.04, 3.97), Motion(0.063, -0.832, 0.114)
+    checked = Verifier(reference)(current, estimate)
+    assert not checked.ok and checked.diagnostics["verify_failed"] == "no_motion"
+    assert Verifier(reference, VerificationParams(edge_floor_levels=0.0))(current, estimate).ok
+    checked = Verifier(reference)(current, truth)
+    assert checked.diagnostics["verify_correlation"] > 0.85
+    assert checked.diagnostics["verify_failed"] == "ambiguous"
+    rival = Motion(*checked.diagnostics["verify_candidate"])
+    assert abs(rival.dx - truth.dx) > 30 and abs(rival.dy - truth.dy) < 1
+
+
+def test_the_searches_for_doubt_see_every_edge_response():
+    """The floor leaves the half-resolution edges, on which the rival, ridge and far-depth
+    searches run, as they are: a far surface's real depth steps are a level or two deep."""
+    reference, current = walking_frames("office_2058", 883, 897)
+    floored, plain = (Verifier(reference, VerificationParams(edge_floor_levels=levels))
+                      for levels in (1.5, 0.0))
+    assert all(np.array_equal(mine, theirs) for mine, theirs
+               in zip(floored._reference_half, plain._reference_half, strict=True))
+    for name in ("_reference_far", "_reference_shifts"):  # MaskedSpectra
+        mine, theirs = getattr(floored, name), getattr(plain, name)
+        assert all(np.array_equal(getattr(mine, part.name), getattr(theirs, part.name))
+                   for part in fields(mine))
+    measured = floored.measure(current), plain.measure(current)
+    for part in (0, 1):
+        assert np.array_equal(measured[0].half[part], measured[1].half[part])
+        assert np.array_equal(measured[0].edges[part], measured[1].edges[part])
+    assert not np.array_equal(measured[0].strong[0], measured[1].strong[0])
 
 
 def test_noise_level_leaves_out_pixels_beside_unmeasured_ones():
