@@ -96,16 +96,16 @@ class VerificationParams:
             +- this many times their median magnitude, so that a few strong depth steps (near
             objects: disparity grows as 1 / depth) do not outweigh all the others. Default 5.
         edge_floor_levels: where the clip limit (``clip_factor`` times the median response)
-            is below the response of a depth step this many gray levels deep
-            (:func:`step_response`), the tests that vouch for an estimate (its correlation, the
-            optimum near it and whether the frames moved) count no response weaker than that.
-            The clip then gives every response the weight of the strongest depth steps, and on
-            a surface that slopes away from the camera the quantized disparity steps by one
-            level along contour lines, which slide over the surface as the camera walks along
-            it and line up at motions the camera did not make. The tests that look for doubt
-            (rivals, ridges, the far depths) count every response: a far surface's real depth
-            steps are a level or two deep. Default 1.5 (docs/method.md, section 11,
-            "Contours"); 0: every test counts every response.
+            of the reference or the current frame is below the response of a depth step this
+            many gray levels deep (:func:`step_response`), the clip gives every response the
+            weight of the strongest depth steps, a one-level step's too; on a surface that
+            slopes away from the camera the quantized disparity steps by one level along
+            contour lines, which slide over the surface as the camera walks along it and line
+            up at motions the camera did not make. There tests 2 and 6 (the correlation and
+            whether the frames moved) must pass on the strong edges as well, without the
+            responses below that floor: they can fail an estimate that every response passes,
+            never pass one it fails. Default 1.5 (docs/method.md, section 11, "Contours");
+            0: never.
         optimum_iterations: most iterations of the climb to the optimum (ECC; it also stops
             when an iteration changes ECC's correlation coefficient by less than 1e-3, the
             termination epsilon of ``cv2.findTransformECC``). At most 1000
@@ -654,13 +654,11 @@ class Verifier:
         """
         return self._ecc(self._reference_half, current_half, motion, 0.5)
 
-    def full_resolution_optimum(self, current: CurrentEdges, motion: Motion,
-                                strong: bool = False) -> Motion | None:
-        """:meth:`local_optimum` on the full-resolution edge images, at four times the cost;
-        ``strong``: on the edge images without their weak responses (``edge_floor_levels``)."""
-        if strong:
-            return self._ecc(self._reference_strong, current.strong, motion, 1.0)
-        return self._ecc(self._reference, current.edges, motion, 1.0)
+    def full_resolution_optimum(self, current_edges: tuple[np.ndarray, np.ndarray],
+                                motion: Motion) -> Motion | None:
+        """:meth:`local_optimum` on the full-resolution edge images (:func:`edge_image` of
+        the current frame), at four times the cost."""
+        return self._ecc(self._reference, current_edges, motion, 1.0)
 
     def _ecc(self, reference_edges: tuple[np.ndarray, np.ndarray],
              current_edges: tuple[np.ndarray, np.ndarray], motion: Motion,
@@ -702,11 +700,15 @@ class Verifier:
         params = self.params
         edges, strong, measured = edge_images(current, params.sigma_px, params.clip_factor,
                                               params.edge_floor_levels)
-        null_correlation, _ = structure_correlation(*self._reference_strong, strong, measured)
+        null_correlation, _ = structure_correlation(*self._reference, edges, measured)
+        floored = strong is not edges or self._reference_strong[0] is not self._reference[0]
+        strong_null = (structure_correlation(*self._reference_strong, strong, measured)[0]
+                       if floored else None)
         # A copy: the caller may reuse its array for the next frame.
         self._last_measured = CurrentEdges(current.copy(), noise_level(current),
                                            (edges, measured), (strong, measured),
-                                           _half_resolution(edges, measured), null_correlation)
+                                           _half_resolution(edges, measured), null_correlation,
+                                           strong_null)
         return self._last_measured
 
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
@@ -719,8 +721,11 @@ class Verifier:
         uncompensated frame's), ``verify_optimum`` (angle, dx, dy), ``verify_optimum_correlation``,
         ``verify_offset_deg`` and ``verify_offset_px`` (the estimate's distance from the
         optimum), ``verify_depth_disagreement``, ``verify_far_offset`` (the offset and score
-        gain of test 7) where it was measured, and ``verify_null_depth_disagreement`` (the
-        uncompensated frame's) where test 6 needed it; otherwise a failed Motion with the
+        gain of test 7) where it was measured, ``verify_null_depth_disagreement`` (the
+        uncompensated frame's) where test 6 needed it, and where the floor applies
+        (``edge_floor_levels``) ``verify_strong_correlation``,
+        ``verify_strong_optimum_correlation`` and ``verify_strong_null_correlation`` (the same
+        on the strong edges); otherwise a failed Motion with the
         status ``"unverified"``, the same diagnostics, ``verify_failed`` (``"overlap"``,
         ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"parallax"``, ``"ambiguous"`` or
         ``"no_motion"``: the first test failed; a turn beyond the searched angles without a
@@ -732,20 +737,19 @@ class Verifier:
         if not motion.ok:
             return motion
         params = self.params
-        current_half = current.half
+        current_edges, current_half = current.edges, current.half
         null_correlation = current.null_correlation
-        correlation, overlap = structure_correlation(*self._reference_strong, *current.strong,
-                                                     motion)
+        correlation, overlap = structure_correlation(*self._reference, *current_edges, motion)
         optimum = self.local_optimum(current_half, motion)
         if optimum is not None:  # the half-resolution climb may stop short of the optimum
             turn = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
             if turn > params.full_resolution_offset_deg:
-                optimum = self.full_resolution_optimum(current, optimum, strong=True) or optimum
+                optimum = self.full_resolution_optimum(current_edges, optimum) or optimum
         if optimum is None:  # no optimum found: the estimate is judged by itself
             optimum, optimum_correlation = motion, correlation
         else:
-            optimum_correlation, _ = structure_correlation(*self._reference_strong,
-                                                           *current.strong, optimum)
+            optimum_correlation, _ = structure_correlation(*self._reference, *current_edges,
+                                                           optimum)
         offset_deg = abs(float(wrap_angle_deg(optimum.angle_deg - motion.angle_deg)))
         offset_px = math.hypot(optimum.dx - motion.dx, optimum.dy - motion.dy)
         disagreement = self._depth_disagreement(current, motion)
@@ -755,8 +759,17 @@ class Verifier:
                            verify_optimum_correlation=optimum_correlation,
                            verify_offset_deg=offset_deg, verify_offset_px=offset_px,
                            verify_depth_disagreement=disagreement)
+        strong = None  # the correlations of the strong edges, where the floor applies
+        if current.strong_null_correlation is not None:
+            strong = [structure_correlation(*self._reference_strong, *current.strong, at)[0]
+                      for at in (motion, optimum)]
+            diagnostics.update(verify_strong_correlation=strong[0],
+                               verify_strong_optimum_correlation=strong[1],
+                               verify_strong_null_correlation=current.strong_null_correlation)
         failed = ("overlap" if overlap < params.min_overlap else
-                  "correlation" if max(correlation, optimum_correlation) < params.min_correlation
+                  "correlation" if (max(correlation, optimum_correlation) < params.min_correlation
+                                    or (strong is not None
+                                        and max(strong) < params.min_correlation))
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px)
                   else "depth" if disagreement > params.max_depth_disagreement else None)
@@ -782,14 +795,17 @@ class Verifier:
                                    verify_shift_correlation=rival.estimate_score,
                                    verify_ridge=rival.ridge)
         if failed is None:  # the search costs most of the check: only for what passed so far
-            rival = self._rival_candidate(current, motion, optimum, beyond)
+            rival = self._rival_candidate(current, motion, optimum, optimum_correlation,
+                                           beyond)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
                                    verify_candidate_correlation=rival[1])
         if failed is None and (abs(float(wrap_angle_deg(motion.angle_deg))) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
-            still = null_correlation >= optimum_correlation - params.null_margin
+            still = (null_correlation >= optimum_correlation - params.null_margin
+                     or (strong is not None and current.strong_null_correlation
+                         >= strong[1] - params.null_margin))
             if still:  # the edges stayed put; the depth may say the frames moved all the same
                 if current.null_disagreement is None:
                     current.null_disagreement = self._depth_disagreement(
@@ -867,7 +883,7 @@ class Verifier:
                                  motion.dy + float(turned[1])), here, score, ridge)
 
     def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
-                         beyond: bool) -> tuple[Motion, float] | None:
+                         optimum_correlation: float, beyond: bool) -> tuple[Motion, float] | None:
         """A motion at another rotation than ``motion`` that explains the frames about as well
         or better, or None.
 
@@ -878,7 +894,7 @@ class Verifier:
         its :meth:`local_optimum`, and also to its :meth:`full_resolution_optimum` when the
         half-resolution climb ends more than ``full_resolution_travel_deg`` from it. The better
         end beyond the offset limits of the estimate wins when it correlates better than the
-        estimate's optimum less ``candidate_margin``, both on every edge response (two peaks
+        estimate's optimum less ``candidate_margin`` (two peaks
         that close cannot be told apart); against an estimate outside the searched angles, less
         ``outside_margin``: a turn beyond the walking range must explain the frames clearly
         better than one within it (a half turn can line up a point-symmetric object, say a
@@ -908,7 +924,7 @@ class Verifier:
             if travel > params.full_resolution_travel_deg:
                 # Astray at half resolution: the full-resolution climb may stay near the
                 # candidate.
-                ends.append(self.full_resolution_optimum(current, candidate) or candidate)
+                ends.append(self.full_resolution_optimum(current.edges, candidate) or candidate)
             current.candidate_ends = [[end, None] for end in ends]
         rivals = []
         for kept in current.candidate_ends:  # [end, its correlation once measured]
@@ -920,7 +936,6 @@ class Verifier:
         if not rivals:
             return None
         correlation, refined = max(rivals, key=lambda rival: rival[0])
-        optimum_correlation, _ = structure_correlation(*self._reference, *current.edges, optimum)
         margin = params.outside_margin if beyond else params.candidate_margin
         return (refined, correlation) if correlation > optimum_correlation - margin else None
 
@@ -970,9 +985,12 @@ class CurrentEdges:
         disparity: the frame itself (uint8, 0 = invalid), for :func:`depth_disagreement`.
         noise: its :func:`noise_level`.
         edges: the frame's edge image (response, measured mask; :func:`edge_images`).
-        strong: the same without the weak responses (``edge_floor_levels``).
+        strong: the same without the weak responses where the floor applies
+            (``edge_floor_levels``; :func:`edge_images`), else the same arrays.
         half: the same at half resolution.
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
+        strong_null_correlation: the same on the strong edges, where the floor applies to the
+            frame or to the reference; None elsewhere.
         candidate: the best motion of the search over the grid of angles
             (:meth:`Verifier.candidate`), once a check has needed it; None before.
         candidate_ends: the ends of the candidate's climbs (:meth:`Verifier._rival_candidate`),
@@ -988,6 +1006,7 @@ class CurrentEdges:
     strong: tuple[np.ndarray, np.ndarray]
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
+    strong_null_correlation: float | None
     candidate: Motion | None = None
     candidate_ends: list[list] | None = None
     null_disagreement: float | None = None
