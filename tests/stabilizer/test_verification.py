@@ -9,7 +9,7 @@ method, in the user's terms.
 from __future__ import annotations
 
 import math
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import cv2
 import numpy as np
