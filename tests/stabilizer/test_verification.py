@@ -622,6 +622,26 @@ def test_an_estimate_that_lines_up_a_walls_disparity_contours_is_not_trusted():
     assert Verifier(reference, VerificationParams(edge_floor_levels=0.0))(current, estimate).ok
 
 
+def test_the_strong_edges_pass_no_estimate_that_every_response_fails():
+    """A box before a sloping wall, moved 6 px; the wall's one-level contours slide by half a
+    level's spacing, as walking along the wall slides them. At the box's motion the strong
+    edges (the box's outline) line up (0.96), every response does not (0.05): the check fails
+    the estimate, with the floor as without it."""
+    columns = np.mgrid[0:144, 0:176][1]
+    reference = np.rint(36.0 + 0.03 * columns).astype(np.uint8)
+    current = np.rint(36.5 + 0.03 * columns).astype(np.uint8)
+    reference[50:90, 60:120] += 12
+    current[50:90, 66:126] += 12
+    box = Motion(0.0, 6.0, 0.0)
+    checked = Verifier(reference)(current, box)
+    assert checked.diagnostics["verify_strong_correlation"] > 0.9
+    assert checked.diagnostics["verify_correlation"] < 0.1
+    assert checked.diagnostics["verify_failed"] == "correlation"
+    every_edge = VerificationParams(edge_floor_levels=0.0)
+    assert Verifier(reference, every_edge)(current, box).diagnostics["verify_failed"] == \
+        "correlation"
+
+
 @pytest.mark.parametrize("walk, frames", [("office_2058", (883, 897)),
                                           ("corridor_2003", (31, 68)),
                                           ("office_2009", (253, 272)),
