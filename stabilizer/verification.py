@@ -530,6 +530,7 @@ class Verifier:
         edges, strong, measured = edge_images(reference, params.sigma_px, params.clip_factor,
                                               params.edge_floor_levels)
         self._reference, self._reference_strong = (edges, measured), (strong, measured)
+        self._reference_floored = strong is not edges
         self._reference_half = _half_resolution(*self._reference)
         half = self._reference_half[0]
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
@@ -701,9 +702,8 @@ class Verifier:
         edges, strong, measured = edge_images(current, params.sigma_px, params.clip_factor,
                                               params.edge_floor_levels)
         null_correlation, _ = structure_correlation(*self._reference, edges, measured)
-        floored = strong is not edges or self._reference_strong[0] is not self._reference[0]
         strong_null = (structure_correlation(*self._reference_strong, strong, measured)[0]
-                       if floored else None)
+                       if strong is not edges or self._reference_floored else None)
         # A copy: the caller may reuse its array for the next frame.
         self._last_measured = CurrentEdges(current.copy(), noise_level(current),
                                            (edges, measured), (strong, measured),
@@ -759,17 +759,18 @@ class Verifier:
                            verify_optimum_correlation=optimum_correlation,
                            verify_offset_deg=offset_deg, verify_offset_px=offset_px,
                            verify_depth_disagreement=disagreement)
-        strong = None  # the correlations of the strong edges, where the floor applies
+        strong_correlations = None  # at the estimate and the optimum, where the floor applies
         if current.strong_null_correlation is not None:
-            strong = [structure_correlation(*self._reference_strong, *current.strong, at)[0]
-                      for at in (motion, optimum)]
-            diagnostics.update(verify_strong_correlation=strong[0],
-                               verify_strong_optimum_correlation=strong[1],
+            strong_correlations = [
+                structure_correlation(*self._reference_strong, *current.strong, at)[0]
+                for at in (motion, optimum)]
+            diagnostics.update(verify_strong_correlation=strong_correlations[0],
+                               verify_strong_optimum_correlation=strong_correlations[1],
                                verify_strong_null_correlation=current.strong_null_correlation)
         failed = ("overlap" if overlap < params.min_overlap else
                   "correlation" if (max(correlation, optimum_correlation) < params.min_correlation
-                                    or (strong is not None
-                                        and max(strong) < params.min_correlation))
+                                    or (strong_correlations is not None
+                                        and max(strong_correlations) < params.min_correlation))
                   else "not_optimum" if (offset_deg > params.max_offset_deg
                                          or offset_px > params.max_offset_px)
                   else "depth" if disagreement > params.max_depth_disagreement else None)
@@ -804,8 +805,8 @@ class Verifier:
         if failed is None and (abs(float(wrap_angle_deg(motion.angle_deg))) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = (null_correlation >= optimum_correlation - params.null_margin
-                     or (strong is not None and current.strong_null_correlation
-                         >= strong[1] - params.null_margin))
+                     or (strong_correlations is not None and current.strong_null_correlation
+                         >= strong_correlations[1] - params.null_margin))
             if still:  # the edges stayed put; the depth may say the frames moved all the same
                 if current.null_disagreement is None:
                     current.null_disagreement = self._depth_disagreement(
