@@ -20,19 +20,51 @@ method added to the suite file is scored on the recorded sequences by running it
 docs/suites.md explains the figures.
 """
 
-from sim.harness.suite.command import add_suite_parser, run_suite_command
-from sim.harness.suite.run import SuiteRun, default_suite_dir, plan_suite, run_suite
-from sim.harness.suite.spec import (ALLOWED, SEQUENCE_ALLOWED, VARIED_KEYS, SuiteError,
-                                    SuiteSequence, SuiteSpec, load_suite, suite_from_dict)
-from sim.harness.suite.statistics import (BOOTSTRAP_SEED, CONFIDENCE_LEVEL, Interval,
-                                          mean_interval, paired_difference)
-from sim.harness.suite.tables import (COLUMNS, FIGURES, TABLE_CSV, TABLE_JSON, TABLE_MD,
-                                      SuiteResult, suite_figures, write_suite_outputs)
+import importlib
 
-__all__ = [
-    "ALLOWED", "BOOTSTRAP_SEED", "COLUMNS", "CONFIDENCE_LEVEL", "FIGURES", "SEQUENCE_ALLOWED",
-    "TABLE_CSV", "TABLE_JSON", "TABLE_MD", "VARIED_KEYS", "Interval", "SuiteError", "SuiteResult",
-    "SuiteRun", "SuiteSequence", "SuiteSpec", "add_suite_parser", "default_suite_dir",
-    "load_suite", "mean_interval", "paired_difference", "plan_suite", "run_suite",
-    "run_suite_command", "suite_figures", "suite_from_dict", "write_suite_outputs",
-]
+# Each name's module, imported when the name is first read: the command line builds the
+# ``suite`` subcommand's parser from ``command`` alone, without the suite's scoring and
+# statistics (scipy, matplotlib), which cost every other command a second.
+_MODULE_OF = {
+    "add_suite_parser": "command",
+    "run_suite_command": "command",
+    "SuiteRun": "run",
+    "default_suite_dir": "run",
+    "plan_suite": "run",
+    "run_suite": "run",
+    "ALLOWED": "spec",
+    "SEQUENCE_ALLOWED": "spec",
+    "VARIED_KEYS": "spec",
+    "SuiteError": "spec",
+    "SuiteSequence": "spec",
+    "SuiteSpec": "spec",
+    "load_suite": "spec",
+    "suite_from_dict": "spec",
+    "BOOTSTRAP_SEED": "statistics",
+    "CONFIDENCE_LEVEL": "statistics",
+    "Interval": "statistics",
+    "mean_interval": "statistics",
+    "paired_difference": "statistics",
+    "COLUMNS": "tables",
+    "FIGURES": "tables",
+    "TABLE_CSV": "tables",
+    "TABLE_JSON": "tables",
+    "TABLE_MD": "tables",
+    "SuiteResult": "tables",
+    "suite_figures": "tables",
+    "write_suite_outputs": "tables",
+}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

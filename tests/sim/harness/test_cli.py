@@ -32,6 +32,21 @@ def test_help_of_every_subcommand(argv, capsys):
     assert "usage: egostab" in capsys.readouterr().out
 
 
+def test_the_parser_and_the_methods_listing_load_neither_the_scoring_nor_the_simulator():
+    """``egostab --help`` and ``egostab methods`` answer at once: building the parser (the
+    suite subcommand's too) loads no scipy, matplotlib or MuJoCo, which every run needs and
+    which cost a second to import."""
+    probe = ("import sys\n"
+             "from sim.harness.cli import main\n"
+             "main(['methods'])\n"
+             "print(sorted({name.split('.')[0] for name in sys.modules}"
+             " & {'scipy', 'matplotlib', 'mujoco', 'dm_control', 'rerun'}))\n")
+    completed = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                               check=True)
+    assert "t2fuzzy" in completed.stdout
+    assert completed.stdout.splitlines()[-1] == "[]"
+
+
 def test_list_shows_every_shipped_scenario(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
