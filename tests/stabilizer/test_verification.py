@@ -642,6 +642,32 @@ def test_the_strong_edges_pass_no_estimate_that_every_response_fails():
         "correlation"
 
 
+def test_the_strong_edges_do_not_vouch_for_a_motion_every_response_calls_still():
+    """A small box four levels before a surface whose disparity climbs a level every two rows,
+    moved 2 px sideways: the surface's contours run along the rows and stay where they are, and
+    they outweigh the box's short sides. Every response lines up without the motion within
+    ``null_margin`` of the optimum (0.994 against 1.0: still), the strong edges (the box alone)
+    do not (0.958): the check fails the motion as ``no_motion`` with the floor as without it.
+    What every response cannot tell from no motion, the check does not pass."""
+    rows = np.mgrid[0:144, 0:176][0]
+    reference = np.rint(30.0 + 0.5 * rows).astype(np.uint8)
+    current = reference.copy()
+    reference[65:69, 80:86] += 4
+    current[65:69, 82:88] += 4
+    box = Motion(0.0, 2.0, 0.0)
+    params = VerificationParams()
+    checked = Verifier(reference, params)(current, box).diagnostics
+    assert checked["verify_failed"] == "no_motion"
+    assert (checked["verify_null_correlation"]
+            >= checked["verify_optimum_correlation"] - params.null_margin)
+    assert (checked["verify_strong_null_correlation"]
+            < checked["verify_strong_optimum_correlation"] - params.null_margin)
+    assert checked["verify_null_depth_disagreement"] == 0.0  # the depth sees no motion either
+    every_edge = replace(params, edge_floor_levels=0.0)
+    assert Verifier(reference, every_edge)(current, box).diagnostics["verify_failed"] == \
+        "no_motion"
+
+
 @pytest.mark.parametrize("walk, frames", [("office_2058", (883, 897)),
                                           ("corridor_2003", (31, 68)),
                                           ("office_2009", (253, 272)),
