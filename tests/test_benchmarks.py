@@ -1,5 +1,7 @@
 """The scripts of benchmarks/ compute what the ``egostab`` command does: numpy and OpenCV load
-on the SIMD paths its runs pin (sim/harness/cpu_paths.py), or not before the harness does."""
+on the SIMD paths its runs pin (sim/harness/cpu_paths.py), or not before the harness does. And
+ok_but_off.py, which docs/suites.md quotes, finds and checks again what it says it does (the
+tuning script's own tests are in tests/sim/harness/test_suite.py)."""
 
 import json
 import os
@@ -41,3 +43,44 @@ def test_a_benchmark_loads_numpy_and_opencv_only_on_the_pinned_paths(script):
     if found["loaded"]:
         assert {name: value for name, value in found["paths"].items() if value} \
             == pinned_paths()
+
+
+def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
+    """benchmarks/ok_but_off.py on a suite whose estimates file is the truth but for one frame
+    turned 8 degrees and still called ok: that frame, and only it, is listed; the check fails
+    the estimate and passes the truth on the sensor's depth and on the exact depth."""
+    import csv
+    import importlib.util
+
+    from sim.harness.cli import main
+
+    suite = tmp_path / "one.toml"
+    suite.write_text(f'name = "one"\nmethods = ["ecc"]\nmax_frames = 30\nrecord = false\n'
+                     f'[overrides]\n"recording.enabled" = false\n[[sequences]]\n'
+                     f'scenario = "{ROOT / "scenarios" / "ci" / "ci_corridor.toml"}"\n'
+                     f'scene_seeds = [0]\n', encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["suite", str(suite), "--workers", "1", "--out", str(out)]) == 0
+    (run,) = (out / "runs").iterdir()
+    estimates = tmp_path / "mine"
+    estimates.mkdir()
+    with open(run / "sequence" / "truth.csv", newline="") as truth, \
+            open(estimates / f"{run.name}.csv", "w", encoding="utf-8") as written:
+        written.write("frame,angle_deg,dx,dy,status\n")
+        for row in csv.DictReader(truth):
+            turned = float(row["angle_deg"]) + (8.0 if row["frame"] == "20" else 0.0)
+            written.write(f"{row['frame']},{turned},{row['dx']},{row['dy']},ok\n")
+    assert main(["suite", str(suite), "--workers", "1", "--out", str(out), "--estimates",
+                 f"mine={estimates}/{{sequence}}.csv"]) == 0
+
+    spec = importlib.util.spec_from_file_location("ok_but_off", ROOT / "benchmarks" /
+                                                  "ok_but_off.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    (found,) = script.looked_at(out)
+    assert (found["method"], found["frame"]) == ("mine", 20)
+    assert found["rotation_deg"] == pytest.approx(8.0)
+    for depth in ("sensor", "exact"):
+        assert found[depth]["estimate"] != "ok" and found[depth]["truth"] == "ok"
+        assert found[depth]["optimum_from_truth_deg"] < 1.0
+    assert "| mine | " in script.table([found])
