@@ -32,7 +32,7 @@ def _verdict(motion) -> str:
     return "ok" if motion.ok else motion.diagnostics.get("verify_failed", motion.status)
 
 
-def _turn_from(optimum: tuple[float, float, float], truth_deg: float) -> float:
+def _turn_between(optimum: tuple[float, float, float], truth_deg: float) -> float:
     from stabilizer.motion import wrap_angle_deg
 
     return abs(float(wrap_angle_deg(optimum[0] - truth_deg)))
@@ -56,8 +56,9 @@ def looked_at(suite_dir: Path) -> list[dict]:
     for method, errors in listed.items():
         for entry in errors["frames"]:
             run = suite_dir / "runs" / entry["sequence"]
-            row = next(row for row in csv.DictReader(open(run / "frames.csv", newline=""))
-                       if row["method"] == method and int(row["frame_index"]) == entry["frame"])
+            with open(run / "frames.csv", newline="", encoding="utf-8") as frames:
+                row = next(row for row in csv.DictReader(frames) if row["method"] == method
+                           and int(row["frame_index"]) == entry["frame"])
             sequence = load_sequence(run / "sequence")
             reference = sequence.frame(int(row["reference_index"]))
             current = sequence.frame(entry["frame"])
@@ -74,7 +75,7 @@ def looked_at(suite_dir: Path) -> list[dict]:
                 on_truth = check(image(current), truth)
                 result[depth] = {
                     "estimate": _verdict(on_estimate), "truth": _verdict(on_truth),
-                    "optimum_from_truth_deg": _turn_from(
+                    "optimum_off_truth_deg": _turn_between(
                         on_estimate.diagnostics["verify_optimum"], truth.angle_deg)}
             found.append(result)
     return found
@@ -93,7 +94,7 @@ def table(found: list[dict]) -> str:
                  f"{row['residual_px']:.2f}", f"{row['epe_px']:.2f} / {row['floor_px']:.2f}"]
         for depth in ("sensor", "exact"):
             cells += [row[depth]["estimate"], row[depth]["truth"],
-                      f"{row[depth]['optimum_from_truth_deg']:.1f}"]
+                      f"{row[depth]['optimum_off_truth_deg']:.1f}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

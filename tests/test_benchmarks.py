@@ -82,5 +82,5 @@ def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
     assert found["rotation_deg"] == pytest.approx(8.0)
     for depth in ("sensor", "exact"):
         assert found[depth]["estimate"] != "ok" and found[depth]["truth"] == "ok"
-        assert found[depth]["optimum_from_truth_deg"] < 1.0
+        assert found[depth]["optimum_off_truth_deg"] < 1.0
     assert "| mine | " in script.table([found])
