@@ -41,7 +41,7 @@ def _turn_between(optimum: tuple[float, float, float], truth_deg: float) -> floa
 def _exact_disparity(frame) -> np.ndarray:
     from stabilizer import depth_to_disparity
 
-    return depth_to_disparity(np.nan_to_num(frame.true_depth_m, nan=0.0, posinf=0.0))
+    return depth_to_disparity(frame.true_depth_m)  # no surface (0, beyond 10 m): 0
 
 
 def looked_at(suite_dir: Path) -> list[dict]:
