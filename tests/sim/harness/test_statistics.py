@@ -20,6 +20,15 @@ def test_the_interval_of_a_known_sample_contains_its_mean():
     assert interval.high - interval.low < samples.max() - samples.min()
 
 
+def test_the_interval_is_a_95_percent_one():
+    # Many normal samples: the bootstrap interval of the mean approaches the normal one,
+    # mean +- 1.96 s / sqrt(n); a 90% interval would be 1.645 / 1.96 = 0.84 times as wide.
+    samples = np.random.default_rng(5).normal(0.0, 1.0, size=400)
+    interval = mean_interval(samples)
+    normal_width = 2 * 1.96 * samples.std(ddof=1) / math.sqrt(samples.size)
+    assert interval.high - interval.low == pytest.approx(normal_width, rel=0.05)
+
+
 def test_the_same_samples_give_the_same_interval_bit_for_bit():
     samples = np.random.default_rng(2).normal(1.0, 0.3, size=20)
     assert mean_interval(samples) == mean_interval(samples.copy())
