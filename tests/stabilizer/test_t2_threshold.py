@@ -62,3 +62,62 @@ def test_fallback_median_is_numpys_bit_for_bit(values):
     robust = Type2FuzzyThreshold(min_values=10)(np.array(values))
     assert robust.fallback == MEDIAN_FALLBACK
     assert robust.value == np.median(values)
+
+
+def _eq6_by_definition(values, alpha, bandwidth, resolution):
+    """Eq. (6) written out: at every position T of the histogram (every step from one
+    bandwidth below the least quantised value to one above the largest), gamma(T) = (1 / N)
+    sum over the values of mu_U - mu_L = mu^(1/alpha) - mu^alpha, mu the triangle of half-width
+    ``bandwidth`` centred at T; distances counted in histogram steps."""
+    bins = np.rint(np.asarray(values) / resolution).astype(int)
+    reach = int(np.ceil(bandwidth / resolution))
+    steps = np.arange(bins.min() - reach, bins.max() + reach + 1)
+    gamma = []
+    for step in steps:
+        mu = np.clip(1.0 - np.abs(bins - step) * resolution / bandwidth, 0.0, 1.0)
+        gamma.append(np.sum(mu ** (1.0 / alpha) - mu ** alpha) / bins.size)
+    return steps * resolution, np.array(gamma)
+
+
+def _threshold_candidates(values, alpha, bandwidth, resolution):
+    """The documented rule: the highest gamma at or below the median is the lower threshold,
+    the highest at or above it the upper one. Peaks equal in exact arithmetic (a symmetric set)
+    differ in the last bits of either sum, so each comes as the positions within 1e-12 of the
+    highest (the code takes the lowest position of exactly equal peaks)."""
+    positions, gamma = _eq6_by_definition(values, alpha, bandwidth, resolution)
+    median = np.median(values)
+    sides = (positions <= median, positions >= median)
+    return [positions[side][gamma[side] >= gamma[side].max() - 1e-12] for side in sides]
+
+
+@pytest.mark.parametrize("alpha, bandwidth, resolution", [(2.0, 1.0, 0.1), (1.5, 2.0, 0.25),
+                                                        (1.2, 1.0, 0.3)])
+def test_ultrafuzziness_and_thresholds_follow_eq6_and_the_documented_rule(alpha, bandwidth,
+                                                                           resolution):
+    # Random sets, some on the histogram's grid (where a value can sit on a threshold and the
+    # median on a position), some off it; eq. (6) and the threshold rule written out decide.
+    threshold = Type2FuzzyThreshold(alpha=alpha, bandwidth_deg=bandwidth,
+                                    resolution_deg=resolution)
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        size = int(rng.integers(3, 12))
+        values = (rng.integers(-30, 30, size) * resolution if trial % 2 else
+                  rng.normal(0.0, 2.0, size))
+        positions, gamma = threshold.ultrafuzziness(values)
+        expected_positions, expected_gamma = _eq6_by_definition(values, alpha, bandwidth,
+                                                                resolution)
+        np.testing.assert_allclose(positions, expected_positions, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(gamma, expected_gamma, rtol=1e-12, atol=1e-15)
+        lowers, uppers = _threshold_candidates(values, alpha, bandwidth, resolution)
+        result = threshold(values)
+        if result.fallback is None:
+            assert np.isclose(lowers, result.lower, rtol=0, atol=1e-12).any()
+            assert np.isclose(uppers, result.upper, rtol=0, atol=1e-12).any()
+            # The mean of the estimates between the thresholds, both included.
+            between = (values >= result.lower) & (values <= result.upper)
+            assert between.any() and (result.inliers == between).all()
+            assert result.value == values[between].mean()
+        else:  # no estimate between the thresholds (of one choice among equal peaks)
+            assert result.fallback == MEDIAN_FALLBACK and result.value == np.median(values)
+            assert any(not ((values >= lower) & (values <= upper)).any()
+                       for lower in lowers for upper in uppers)
