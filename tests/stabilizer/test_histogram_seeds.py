@@ -34,6 +34,26 @@ def test_peak_below_the_ratio_is_not_a_seed():
     assert HistogramSeeds(min_ratio=0.01)(image).n_clusters == 3
 
 
+def test_a_bin_of_exactly_the_ratio_is_not_a_peak():
+    # The paper's peaks hold more than 2% of the pixels: 20 of 1000 is not more.
+    image = _image_of_levels([(30, 600), (110, 380), (230, 20)])
+    np.testing.assert_allclose(HistogramSeeds(min_ratio=0.02)(image).seeds, [30, 110])
+    image = _image_of_levels([(30, 600), (110, 379), (230, 21)])
+    np.testing.assert_allclose(HistogramSeeds(min_ratio=0.02)(image).seeds, [30, 110, 230])
+
+
+def test_the_first_and_the_last_bin_can_be_peaks():
+    # Levels 1-20 (the farthest depths) and 241-255: the histogram's ends are peaks as well.
+    image = _image_of_levels([(5, 500), (120, 200), (250, 300)])
+    np.testing.assert_allclose(HistogramSeeds()(image).seeds, [5, 120, 250])
+
+
+def test_the_second_seed_is_the_level_farthest_from_the_first():
+    # One peak (level 200); of the levels too rare to peak, 20 is farther from it than 240.
+    image = _image_of_levels([(20, 5), (200, 990), (240, 5)])
+    np.testing.assert_allclose(HistogramSeeds()(image).seeds, [20, 200])
+
+
 def test_neighbouring_smaller_bin_is_not_a_peak_and_seed_is_bin_centre_of_mass():
     # Bins 41-60 (levels 45, 55) and 61-80 (level 70, fewer): one peak, centre of mass 50.
     image = _image_of_levels([(45, 300), (55, 300), (70, 200), (200, 300)])
