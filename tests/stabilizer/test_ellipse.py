@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from stabilizer.ellipse import axis_angle_difference, fit_ellipses
+from stabilizer.ellipse import MIN_POINTS, axis_angle_difference, fit_ellipses
 from stabilizer.motion import Motion, apply_motion
 
 
@@ -78,6 +78,18 @@ def test_round_fits_carry_no_angle_and_small_sets_are_invalid():
     assert fit.valid[0] and not fit.oriented[0]
     assert not fit.valid[1] and not fit.valid[2]  # 4 points; no points at all
     assert np.isnan(fit.angle_deg[1])
+
+
+def test_a_set_of_min_points_is_fitted_and_one_fewer_is_not():
+    # Five points determine a conic exactly, so a fit of five checks nothing: too few.
+    # MIN_POINTS (6) points of one ellipse give it back exactly.
+    angles = np.linspace(0.0, 2.0 * np.pi, MIN_POINTS, endpoint=False)
+    x, y = 30.0 + 10.0 * np.cos(angles), 20.0 + 4.0 * np.sin(angles)
+    fit = fit_ellipses(np.r_[x, x[:-1]], np.r_[y, y[:-1]],
+                       np.r_[np.zeros(MIN_POINTS, int), np.ones(MIN_POINTS - 1, int)], 2)
+    assert fit.valid[0] and not fit.valid[1]
+    np.testing.assert_allclose([fit.centre_x[0], fit.centre_y[0], fit.half_major[0],
+                                fit.half_minor[0]], [30.0, 20.0, 10.0, 4.0], atol=1e-9)
 
 
 def test_weights_equal_to_repetition():
