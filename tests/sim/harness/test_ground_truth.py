@@ -177,6 +177,45 @@ def test_an_occluder_must_be_nearer_than_the_tolerance_of_its_own_depth():
     assert truth.n_points == SR4000_INTRINSICS.height * (SR4000_INTRINSICS.width - 1)
 
 
+@pytest.mark.parametrize("axis, step_m", [(0, (0.0096, 0.0)), (1, (0.0, 0.0092))])
+def test_an_occluder_hides_the_points_that_land_in_its_pixel(axis, step_m):
+    """Sub-pixel targets are looked up in the pixel they land in (pixel j covers
+    [j - 0.5, j + 0.5)): after a step of 0.7 px across a wall, a near column (or row) hides
+    the points that land within half a pixel of it, not those a pixel short of it."""
+    wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
+    reference, current = _frames(world=wall, current_pos=np.array([0.0, *step_m]))
+    open_view = ground_truth(reference, current, stride=1)
+    occluder = 100
+    depth = current.depth_m.copy()
+    if axis == 0:
+        depth[:, occluder] = 1.0
+    else:
+        depth[occluder] = 1.0
+    hidden = ground_truth(reference, dataclasses.replace(current, depth_m=depth), stride=1)
+    target = open_view.correspondences.target_px[:, axis].astype(np.float64)
+    shift = target - open_view.correspondences.source_px[:, axis]
+    assert np.abs(shift) == pytest.approx(np.full(shift.shape, 0.7), abs=0.1)
+    in_occluder = np.floor(target + 0.5) == occluder
+    assert in_occluder.sum() == (SR4000_INTRINSICS.height, SR4000_INTRINSICS.width)[axis]
+    np.testing.assert_array_equal(hidden.correspondences.source_px,
+                                  open_view.correspondences.source_px[~in_occluder])
+
+
+def test_pixels_the_sensor_does_not_report_are_no_points_without_the_exact_depth():
+    # A column the sensor flags invalid (its depth left in place) is no point of the truth;
+    # given the exact depth, which knows no sensor, it is.
+    reference, current = _frames(roll_deg=2.0)
+    unreported = 31
+    valid = reference.valid.copy()
+    valid[:, unreported] = False
+    flagged = dataclasses.replace(reference, valid=valid)
+    reported = ground_truth(flagged, current, stride=1)
+    assert not np.any(reported.correspondences.source_px[:, 0] == unreported)
+    exact = ground_truth(flagged, current, stride=1, reference_depth_m=reference.depth_m,
+                         current_depth_m=current.depth_m)
+    assert np.any(exact.correspondences.source_px[:, 0] == unreported)
+
+
 def test_surfaces_nearer_than_a_metre_are_surfaces():
     near_wall = [facing_rectangle(0.4, 0.0, 0.0, 5.0, 5.0)]
     truth = ground_truth(*_frames(world=near_wall, yaw_deg=1.0))
@@ -207,12 +246,14 @@ def test_a_max_depth_nearer_than_every_surface_leaves_no_overlap():
     ((0.026, 0.0), 1.9), ((-0.026, 0.0), 1.9), ((0.0, 0.025), 1.9), ((0.0, -0.025), 1.9),
     ((0.0178, 0.0), 1.3), ((-0.0178, 0.0), 1.3), ((0.0, 0.017), 1.3), ((0.0, -0.017), 1.3),
     ((0.0096, 0.0), 0.7), ((-0.0096, 0.0), 0.7), ((0.0, 0.0092), 0.7), ((0.0, -0.0092), 0.7),
+    ((0.004, 0.0), 0.3), ((-0.004, 0.0), 0.3), ((0.0, 0.004), 0.3), ((0.0, -0.004), 0.3),
 ])
 def test_points_carried_out_of_the_image_are_dropped(step_m, shift_px):
     # A step across a wall 3 m ahead shifts the image by about 1.9 px: the outermost row or
     # column of the stride-2 grid lands in [W - 0.5, W + 0.5) or [H - 0.5, H + 0.5), beyond
     # the last pixel (pixel j covers [j - 0.5, j + 0.5)). A shift of 1.3 px puts it inside the
-    # last pixel, one of 0.7 px the other way outside the first.
+    # last pixel, one of 0.7 px the other way outside the first; one of 0.3 px the other way
+    # keeps the first row or column, within the first pixel.
     wall = [facing_rectangle(3.0, 0.0, 0.0, 20.0, 20.0)]
     truth = ground_truth(*_frames(world=wall, current_pos=np.array([0.0, *step_m])))
     assert truth.motion.angle_deg == pytest.approx(0.0, abs=1e-9)
