@@ -1,5 +1,7 @@
 """The whole Kang, Zhang & Park (2009) pipeline on synthetic depth scenes with known motion."""
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -83,6 +85,17 @@ def test_objects_pair_by_nearest_cluster_centre_then_by_area():
 def test_objects_whose_centres_differ_by_more_than_the_limit_stay_unmatched():
     reference = _objects([100.0, 200.0], [100.0, 100.0])
     assert match_objects(reference, _objects([103.0, 150.0], [100.0, 100.0]), 10.0) == [(0, 0)]
+
+
+def test_objects_pair_one_to_one_and_at_the_limit_still_pair():
+    # Both reference objects are nearest the first current one: the nearer takes it, and the
+    # other the next current object within the limit, not the taken one again.
+    reference = _objects([100.0, 103.0], [100.0, 100.0])
+    assert match_objects(reference, _objects([101.0, 110.0], [100.0, 100.0]), 10.0) == \
+        [(0, 0), (1, 1)]
+    # Only a gap of more than the limit leaves a pair out.
+    assert match_objects(_objects([100.0], [100.0]), _objects([110.0], [100.0]), 10.0) == \
+        [(0, 0)]
 
 
 @pytest.mark.parametrize("refinements", [DISC_ONLY, Refinements.off()])
@@ -326,6 +339,17 @@ def test_estimates_the_central_template_and_the_whole_overlap_disagree_on_are_fa
     np.testing.assert_allclose(strict.diagnostics["disagreeing_motion"], agreed.as_tuple())
     paper = stabilizer.estimate(reference, current, method="t2fuzzy_paper", verification=None)
     assert "wide_shift" not in paper.diagnostics and "search_converged" not in paper.diagnostics
+    # The disagreement is the distance between the two shifts, not one axis of it.
+    gap_x, gap_y = (abs(shift - wide) for shift, wide in
+                    zip(agreed.as_tuple()[1:], agreed.diagnostics["wide_shift"]))
+    between = (max(gap_x, gap_y) + math.hypot(gap_x, gap_y)) / 2.0
+    assert min(gap_x, gap_y) > 0.1 * between
+    beyond = stabilizer.estimate(reference, current, verification=None, refinements=Refinements(
+        max_shift_disagreement_px=between, resolve_disagreement=False))
+    assert beyond.status == TRANSLATION_DISAGREEMENT
+    within = stabilizer.estimate(reference, current, verification=None, refinements=Refinements(
+        max_shift_disagreement_px=1.1 * math.hypot(gap_x, gap_y), resolve_disagreement=False))
+    assert within.as_tuple() == agreed.as_tuple()
 
 
 def test_an_unconverged_rotation_search_is_a_failure():
