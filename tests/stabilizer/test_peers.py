@@ -27,12 +27,13 @@ import numpy as np
 import pytest
 
 from stabilizer import Motion, Stabilizer, apply_motion, depth_to_disparity, estimate
-from stabilizer.motion import wrap_angle_deg
+from stabilizer.motion import transform_points, wrap_angle_deg
 from stabilizer.peers.preparation import (FramePreparation, clipped, robust_value_range,
                                           valid_interior)
 from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator, edge_normals
+from stabilizer.peers import sift as sift_module
 from stabilizer.peers.sift import SiftEstimator
 from stabilizer.peers.start_search import START_ANGLES_DEG, StartSearch
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene, random_motion
@@ -183,6 +184,52 @@ def test_sift_keeps_the_matches_that_pass_lowes_ratio_test():
                for ratio in (0.75, 0.99)]
     assert (matches[0]["n_matches"] < matches[1]["n_matches"]
             < matches[1]["n_reference_keypoints"])
+
+
+def test_sift_ransac_needs_two_matches_far_enough_apart_to_fix_an_angle():
+    # Four matches within 5 px of one another (less than twice the 3-px threshold): no pair
+    # of them fixes a rotation, so no hypothesis is made.
+    reference_pts = np.array([[50, 50], [52, 51], [51, 53], [53, 52]], float)
+    inliers = sift_module._rigid_ransac_inliers(reference_pts, reference_pts + [10.0, 3.0],
+                                                SR4000_SHAPE, 3.0, 10_000)
+    assert not inliers.any()
+
+
+def test_sift_ransac_breaks_ties_by_the_smaller_residuals():
+    # Two pairs of matches, each the only inliers of its own motion: the first pair's lengths
+    # differ by 1 px (residuals of 0.5 px under its hypothesis), the second's agree exactly.
+    # Equal counts: the second, with no residual, wins (MSAC), not the first one found.
+    first_ref = np.array([[20.0, 20.0], [60.0, 20.0]])
+    first_cur = transform_points(Motion(0.0, 5.0, 0.0), first_ref, SR4000_SHAPE) + [[0, 0], [1, 0]]
+    second_ref = np.array([[100.0, 100.0], [140.0, 110.0]])
+    second_cur = transform_points(Motion(40.0, -10.0, 8.0), second_ref, SR4000_SHAPE)
+    inliers = sift_module._rigid_ransac_inliers(np.vstack([first_ref, second_ref]),
+                                                np.vstack([first_cur, second_cur]),
+                                                SR4000_SHAPE, 3.0, 10_000)
+    assert inliers.tolist() == [False, False, True, True]
+
+
+def test_sift_refits_on_the_consensus_until_it_settles(monkeypatch):
+    """The RANSAC hypothesis's inliers are refitted, and the matches within the threshold of
+    the refit replace them, until the set settles: started from the first three or the first
+    six of the inliers, the estimate takes in more matches and ends at the same set and motion
+    (here not the whole consensus's own: two fixed points of the refit)."""
+    reference = depth_to_disparity(make_depth_scene(0))
+    current = apply_motion(reference, Motion(5.0, 10.0, -7.0))
+    found = sift_module._rigid_ransac_inliers
+    settled = []
+    for first in (3, 6):
+        def first_inliers(*args, first=first):
+            inliers = found(*args)
+            partial = np.zeros_like(inliers)
+            partial[np.flatnonzero(inliers)[:first]] = True
+            return partial
+
+        monkeypatch.setattr(sift_module, "_rigid_ransac_inliers", first_inliers)
+        settled.append(SiftEstimator(reference).estimate(current))
+    assert all(estimate.ok for estimate in settled)
+    assert settled[0].diagnostics["n_inliers"] == settled[1].diagnostics["n_inliers"] > 6
+    assert settled[0].as_tuple() == pytest.approx(settled[1].as_tuple(), abs=1e-9)
 
 
 @pytest.mark.parametrize("method", METHODS)
