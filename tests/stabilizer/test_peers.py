@@ -232,6 +232,22 @@ def test_sift_refits_on_the_consensus_until_it_settles(monkeypatch):
     assert settled[0].as_tuple() == pytest.approx(settled[1].as_tuple(), abs=1e-9)
 
 
+def test_icp_stops_at_the_first_start_that_fits_else_keeps_the_best_run():
+    # Noisy frames: the best-ranked start fits 99.5% of the edge points, enough to stop there
+    # (accept_fraction 0.5); asked for every point, ICP runs all three starts and still keeps
+    # that run, the one that fits most, not the last one made.
+    reference = _disparity(3)
+    current = _tof_noise(apply_motion(reference, Motion(3.0, 5.0, 5.0)),
+                         np.random.default_rng(3))
+    first = IcpEstimator(reference).estimate(current)
+    every_start = IcpEstimator(reference, accept_fraction=1.0).estimate(current)
+    assert first.ok and first.diagnostics["starts"] == 1
+    assert 0.5 < first.diagnostics["inlier_fraction"] < 1.0
+    assert every_start.diagnostics["starts"] == 3
+    assert every_start.diagnostics["start_angle_deg"] == first.diagnostics["start_angle_deg"]
+    assert every_start.as_tuple() == first.as_tuple()
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_reference_is_analysed_once_and_reused(method):
     """One estimator serves many frames; it does not read the reference image again.
