@@ -248,6 +248,21 @@ def test_icp_stops_at_the_first_start_that_fits_else_keeps_the_best_run():
     assert every_start.as_tuple() == first.as_tuple()
 
 
+def test_ecc_stops_at_the_first_start_that_fits_else_keeps_the_best_correlation():
+    # The best-ranked start reaches a correlation of 0.996, enough to stop there; asked for
+    # more than any start reaches, ECC runs all three and reports the best of them (then a
+    # low_correlation failure), not the last one made.
+    reference = _disparity(0)
+    current = _tof_noise(apply_motion(reference, Motion(3.0, 5.0, 5.0)),
+                         np.random.default_rng(0))
+    first = EccEstimator(reference).estimate(current)
+    every_start = EccEstimator(reference, min_correlation=0.999999).estimate(current)
+    assert first.ok and first.diagnostics["starts"] == 1
+    assert every_start.status == "low_correlation" and every_start.diagnostics["starts"] == 3
+    assert every_start.diagnostics["start_angle_deg"] == first.diagnostics["start_angle_deg"]
+    assert every_start.diagnostics["correlation"] == first.diagnostics["correlation"]
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_reference_is_analysed_once_and_reused(method):
     """One estimator serves many frames; it does not read the reference image again.
