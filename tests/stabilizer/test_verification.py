@@ -550,6 +550,18 @@ def test_edges_correlate_as_a_cosine_and_minus_1_where_no_edge_is_measured_in_bo
     assert not flat[0].any() and structure_correlation(*edges, *flat) == (-1.0, 1.0)
 
 
+def test_the_overlap_is_the_share_of_the_reference_measured_in_both():
+    # The reference measures the left half, the current frame the right three quarters: a
+    # quarter of the frame is measured in both, half of the reference's measured pixels.
+    params = VerificationParams()
+    edges, measured = edge_image(REFERENCE, params.sigma_px, params.clip_factor)
+    left, right = np.zeros_like(measured), np.zeros_like(measured)
+    width = measured.shape[1]
+    left[:, :width // 2] = 1
+    right[:, width // 4:] = 1
+    assert structure_correlation(edges, left, edges, right)[1] == pytest.approx(0.5)
+
+
 def test_a_one_level_step_responds_with_the_step_response_and_the_floor_is_in_its_units():
     """step_response is the largest Laplacian of the smoothed frame across a one-level step; a
     floor of 1.5 levels takes such a step out of the strong edges and keeps one of two levels,
@@ -705,6 +717,21 @@ def test_noise_level_leaves_out_pixels_beside_unmeasured_ones():
     assert noise_level(striped) == 0.0
 
 
+def test_noise_level_is_the_scaled_median_residual_also_of_an_even_count():
+    # 1.4826 times numpy's median of |frame - its 3 x 3 median| over the pixels whose 3 x 3
+    # neighbourhood is measured; an even count of them, whose two middle residuals differ.
+    rng = np.random.default_rng(19)
+    frame = np.clip(rng.normal(100.0, 20.0, (40, 60)), 1, 255).astype(np.uint8)
+    frame[:, :3] = 0  # leaves 38 x 55 inner pixels: an even count
+    inner = cv2.erode((frame > 0).view(np.uint8), np.ones((3, 3), np.uint8),
+                      borderValue=0).view(bool)
+    residuals = cv2.absdiff(frame, cv2.medianBlur(frame, 3))[inner]
+    ordered = np.sort(residuals)
+    assert residuals.size % 2 == 0
+    assert ordered[residuals.size // 2 - 1] != ordered[residuals.size // 2]
+    assert noise_level(frame) == pytest.approx(1.4826 * np.median(residuals))
+
+
 def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
     """The fast path (uint8 filtered straight to float32, the median by partition) gives the
     documented edge image: cv2.GaussianBlur of the float frame and of its valid mask, and
@@ -765,6 +792,11 @@ def test_depth_disagreement_is_near_zero_at_the_truth_and_large_off_it():
                                                    TRUTH.dy)) > 0.1
     # No pixel measured in both: nothing agrees.
     assert disagreement(REFERENCE, np.zeros_like(CURRENT), TRUTH) == 1.0
+    # Only pixels both frames measure count: a frame against itself with a hole in the
+    # reference (the current frame measures there) agrees everywhere.
+    holed = REFERENCE.copy()
+    holed[40:100, 50:120] = 0
+    assert disagreement(holed, REFERENCE, Motion(0.0, 0.0, 0.0)) == 0.0
 
 
 def test_the_depth_tolerance_grows_with_the_current_frames_noise():
