@@ -186,6 +186,15 @@ def test_a_second_look_that_passes_the_check_replaces_the_estimate():
     assert "second_look_failed" not in result.diagnostics
 
 
+def test_a_second_look_that_lines_the_edges_up_as_well_replaces_the_estimate():
+    """At least as well is enough: a second look equal to the first estimate, its diagnostics
+    marked, lines the edges up exactly as well and is the result."""
+    again = Motion(*TRUTH.as_tuple(), diagnostics={"second_look_from": TRUTH.as_tuple()})
+    result = _stabilizer_with(_SecondLooking(TRUTH, again)).estimate(CURRENT)
+    assert result.ok and result.diagnostics["second_look_from"] == TRUTH.as_tuple()
+    assert "second_look_failed" not in result.diagnostics
+
+
 def test_a_second_look_that_fails_the_check_leaves_the_first_estimate():
     """The truth passes the check; a second look 12 degrees off does not and is only recorded."""
     wrong = Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy)
