@@ -156,6 +156,33 @@ def test_a_climb_whose_last_step_reaches_the_peak_is_converged():
         assert flag is converged and abs(angle - start) <= 1.5 * 1.5 + 1e-9  # a step, half more
 
 
+class _ParabolicPeak:
+    """A template whose correlation over rotation is the parabola -(angle - peak)^2, whose
+    shift grows linearly with the angle, and which records where each match is asked near."""
+
+    def __init__(self, peak_deg: float):
+        self.peak_deg, self.asked = peak_deg, []
+
+    def match(self, image, angle_deg, near=None):
+        self.asked.append((angle_deg, near))
+        return TemplateMatch(10.0 * angle_deg, -5.0 * angle_deg, 1.0, False,
+                             -(angle_deg - self.peak_deg) ** 2)
+
+
+def test_the_climb_ends_at_the_vertex_with_the_shift_interpolated_there():
+    """Steps of 1.5 deg from 0 towards a peak at 2 deg: the climb stops at 1.5 (above 0 and
+    3), the parabola through the three puts the rotation at 2 and the shift where it is at 2
+    (20, -10), between the samples'; each step searches near the shift of its new centre."""
+    smoothed = _smoothed(_scene())
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements())
+    template = _ParabolicPeak(2.0)
+    angle, match, converged = search._climb(template, None, 0.0, template.match(None, 0.0))
+    assert converged and angle == pytest.approx(2.0)
+    assert (match.x, match.y) == (pytest.approx(20.0), pytest.approx(-10.0))
+    assert template.asked[-1] == (3.0, (15.0, -7.5))
+
+
 def test_the_candidates_are_the_means_of_the_largest_groups_of_angles():
     """Groups split at gaps wider than two climbing steps (3 deg), largest first."""
     reference = _scene()
@@ -164,6 +191,8 @@ def test_the_candidates_are_the_means_of_the_largest_groups_of_angles():
                             Refinements(search_candidates=2))
     means = search._group_means(np.array([9.0, 1.0, 5.0, 1.1, 9.1, 1.2]))
     assert means == [pytest.approx(1.1), pytest.approx(9.05)]
+    # A gap of 2.1 deg, more than one step but not two, does not split a group.
+    assert search._group_means(np.array([1.0, 1.1, 3.2])) == [pytest.approx(5.3 / 3)]
 
 
 def test_the_search_stays_within_the_rotation_range():
