@@ -16,8 +16,8 @@ from sim.harness.runner import RecordConfig, SimulatedFrames, frame_truth, recor
 from sim.harness.scenario import load_scenario
 from sim.harness.interrupts import Interrupted
 from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M, FORMAT, TRUTH_COLUMNS,
-                                  SequenceWriter, decoded_frame, encode_frame, load_sequence,
-                                  remove_recording)
+                                  UINT16_MAX, SequenceWriter, decoded_frame, encode_frame,
+                                  load_sequence, remove_recording, reported_depth_unit_m)
 from sim.harness.validation import FileValueError
 from sim.world.camera import Frame
 
@@ -81,6 +81,19 @@ def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0
     with pytest.raises(ValueError, match=r"frame 0's reported depth reaches 7.00 m; a sequence "
                                          r"stores at most 6.5535 m"):
         encode_frame(far, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
+
+
+def test_stored_depths_are_rounded_to_the_nearest_unit():
+    # Half a unit at most from what was measured, each way: 2.00006 m is 20001 units of
+    # 0.1 mm, 2.00004 m 20000; the exact depth in units of 0.5 mm likewise.
+    depth = np.array([[2.00006, 2.00004, 1.99996], [3.0, 3.00024, 3.00026]], np.float32)
+    frame = dataclasses.replace(_small_frame(np.ones((2, 3), bool), depth), depth_m=depth)
+    encoded = encode_frame(frame, 50.0, FINE_DEPTH_UNIT_M)
+    assert encoded.depth.tolist() == [[20001, 20000, 20000], [30000, 30002, 30003]]
+    assert encoded.exact.tolist() == [[4000, 4000, 4000], [6000, 6000, 6001]]
+    # The finest unit that holds the sensor's farthest report, up to the last one it holds.
+    assert reported_depth_unit_m(UINT16_MAX * FINE_DEPTH_UNIT_M) == FINE_DEPTH_UNIT_M
+    assert reported_depth_unit_m(6.554) == EXACT_DEPTH_UNIT_M
 
 
 def test_a_frames_unmeasured_pixels_and_surfaces_read_back_unmeasured_and_absent():
