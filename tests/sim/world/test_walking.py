@@ -386,3 +386,40 @@ def test_floor_estimate_takes_the_median_slope_and_ignores_feet_on_their_edge():
     assert floor.height(1.0, 5.0, 0.0, 5.0) == pytest.approx(math.tan(math.radians(3.0)))
     with pytest.raises(ValueError, match="max_slope_deg"):
         FloorEstimate(0.01, max_slope_deg=0.0)
+
+
+def _posed(model, turn_x_deg: float, lift_m: float):
+    """Data of the standing robot turned about the world's x axis through its free joint and
+    raised by ``lift_m``, with contacts computed."""
+    sim = RobotSimulation(model)
+    data = mujoco.MjData(model)
+    data.qpos[:] = sim.data.qpos
+    adr = free_joint_qpos_address(model)
+    data.qpos[adr + 2] += lift_m
+    turn = np.empty(4)
+    mujoco.mju_mat2Quat(turn, rot_x(math.radians(turn_x_deg)).ravel())
+    mujoco.mju_mulQuat(data.qpos[adr + 3:adr + 7], turn, data.qpos[adr + 3:adr + 7].copy())
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def test_a_torso_tilted_beyond_the_limit_is_a_fall_by_its_tilt(model):
+    # Turned 60 deg in the air (its height check off): past 45 deg it has fallen, within
+    # 70 deg it has not.
+    from sim.world.walking.falls import FallDetector
+
+    data = _posed(model, 60.0, 0.3)
+    assert data.ncon == 0
+    assert FallDetector(model, min_torso_height_m=0.0).check(data).reason == "torso_tilt"
+    assert FallDetector(model, min_torso_height_m=0.0, max_tilt_deg=70.0).check(data) is None
+
+
+def test_a_body_other_than_a_foot_on_the_floor_is_a_fall_by_contact(model):
+    # Lying on its side on the floor (height and tilt checks off): a contact of a body that
+    # is not a foot.
+    from sim.world.walking.falls import FallDetector
+
+    data = _posed(model, 90.0, -0.2)
+    fall = FallDetector(model, min_torso_height_m=0.0, max_tilt_deg=180.0).check(data)
+    assert fall is not None and fall.reason.startswith("contact:")
+    assert not fall.reason.endswith("_foot")
