@@ -266,6 +266,17 @@ def test_unmatched_correlation_gives_no_translation_estimate():
     assert motion.diagnostics["ncc_peak"] == pytest.approx(1.0, abs=1e-3)
 
 
+def test_a_flat_central_template_gives_no_translation_estimate():
+    # Objects only near the corners: the paper's central template (44 px in from every side)
+    # is flat, its correlation undefined (NaN) at every shift: a failure, not an "ok" NaN.
+    reference = np.full((144, 176), 60, np.uint8)
+    for centre in ((20, 20), (150, 25), (25, 120), (150, 118)):
+        cv2.ellipse(reference, centre, (14, 8), 30, 0, 360, 180, -1)
+    current = apply_motion(reference, Motion(2.0, 1.0, 1.0))
+    motion = stabilizer.estimate(reference, current, method="t2fuzzy_paper", verification=None)
+    assert motion.status == NO_TRANSLATION and math.isnan(motion.diagnostics["ncc_peak"])
+
+
 def _odd_frames():
     rng = np.random.default_rng(5)
     noise = rng.integers(0, 256, (144, 176)).astype(np.uint8)
