@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import pywt
 
-from stabilizer.wavelet_features import WaveletFeatures, haar_detail_energy, haar_sums
+from stabilizer.wavelet_features import (WaveletFeatures, _block_centre, haar_detail_energy,
+                                        haar_sums)
 
 
 def _square_labels():
@@ -154,3 +155,19 @@ def test_significance_drops_weak_coefficients():
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         WaveletFeatures(**kwargs)
+
+
+@pytest.mark.parametrize("name", ["haar", "db2", "db3"])
+@pytest.mark.parametrize("level", [1, 2])
+def test_a_coefficients_position_is_the_centre_of_the_samples_it_depends_on(name, level):
+    # PyWavelets itself says which samples a coefficient depends on: those whose impulse
+    # moves it. The centre of their span is the coefficient's point (away from the signal's
+    # ends, where the signal extension adds samples).
+    wavelet = pywt.Wavelet(name)
+    size = 64
+    responses = np.array([pywt.wavedec(np.eye(size)[sample], wavelet, level=level)[1]
+                          for sample in range(size)])
+    coefficients = np.arange(3, responses.shape[1] - 3)
+    spans = [np.flatnonzero(np.abs(responses[:, k]) > 1e-12) for k in coefficients]
+    np.testing.assert_array_equal(_block_centre(coefficients, level, wavelet.dec_len),
+                                  [(span.min() + span.max()) / 2.0 for span in spans])
