@@ -46,6 +46,17 @@ def test_common_disc_masks_show_the_same_part_of_the_scene(motion):
     assert np.count_nonzero(in_reference) > 0.3 * height * width
 
 
+def test_the_common_disc_is_centred_half_way_along_the_shift_and_as_large_as_both_allow():
+    # A shift of 100 px along x: the disc sits at x = 37.5 in the reference and 137.5 in the
+    # current frame, 38.5 px from each image's side, so its radius is 36.5 px (one pixel in).
+    in_reference, in_current = common_disc(Motion(0.0, 100.0, 0.0), (144, 176))
+    for mask, centre_x in ((in_reference, 37.5), (in_current, 137.5)):
+        rows, cols = np.nonzero(mask)
+        assert cols.mean() == pytest.approx(centre_x, abs=0.1)
+        assert rows.mean() == pytest.approx(71.5, abs=0.1)
+        assert rows.size == pytest.approx(math.pi * 36.5 ** 2, rel=0.03)
+
+
 def test_translation_guess_finds_the_shift_at_half_resolution():
     reference = _scene()
     coarse = half_resolution_template(_smoothed(reference), 44)
@@ -53,6 +64,9 @@ def test_translation_guess_finds_the_shift_at_half_resolution():
     assert guess.angle_deg == 0.0
     np.testing.assert_allclose((guess.dx, guess.dy), (12, -8), atol=1.0)
     assert translation_guess(coarse, _smoothed(reference), 1.01) is None
+    # A flat reference has no correlation at all (NaN): no guess either.
+    flat = half_resolution_template(np.full((144, 176), 50.0, np.float32), 44)
+    assert translation_guess(flat, _smoothed(reference), 0.3) is None
 
 
 @pytest.mark.parametrize("start", [0.0, 6.0, 12.0])
