@@ -220,3 +220,14 @@ def test_a_histogram_without_valid_pixels_is_refused():
     counts[0] = 500  # invalid pixels only
     with pytest.raises(ValueError, match="level_counts has no valid pixel"):
         IT2FCM().fit(counts, np.array([10.0, 100.0]))
+
+
+def test_a_label_of_exactly_min_area_pixels_is_kept_and_one_of_fewer_dropped():
+    # A 5 x 6 block (30 pixels, whole under the 3 x 3 opening) of label 2 in label 1.
+    labels = np.ones((20, 24), np.uint8)
+    labels[5:10, 6:12] = 2
+    cleaned, areas = LabelCleaner(min_area=30).with_areas(labels, 2)
+    assert areas.tolist() == [450, 30] and np.count_nonzero(cleaned == 2) == 30
+    cleaned, areas = LabelCleaner(min_area=31).with_areas(labels, 2)
+    assert areas.tolist() == [450, 0] and not np.any(cleaned == 2)
+    assert np.count_nonzero(cleaned == 0) == 30  # dropped, not given to another label
