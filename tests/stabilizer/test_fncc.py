@@ -171,6 +171,32 @@ def test_rotated_templates_mask_the_invalid_pixels_they_carry():
     assert turned is not None and 12 <= np.count_nonzero(turned == 0) <= 24
 
 
+def test_a_hole_near_the_templates_corner_is_masked():
+    # The template (88 x 56 px about the centre 87.5, 71.5) reaches 52 px from the centre at
+    # its corners: a hole 46 px out, near a corner, is in it and must be masked, upright and
+    # turned.
+    reference = _textured(seed=5) + 1.0
+    reference[92:95, 126:129] = 0.0
+    template = RotatedTemplate(reference, margin=44)
+    _, upright = template.template(0.0)
+    assert upright is not None
+    np.testing.assert_array_equal(upright > 0, reference[44:-44, 44:-44] > 0)
+    _, turned = template.template(-5.0)
+    assert turned is not None and np.count_nonzero(turned == 0) >= 4
+
+
+def test_a_search_near_a_shift_beyond_the_range_stays_inside_the_image():
+    # A previous shift far outside the +-44 px range: the window near it (+-2 px) is clamped
+    # to the image's edge, and the search gives a match within it, at the range's end.
+    reference = _textured(seed=5)
+    current = apply_motion(reference, Motion(0.0, 12.0, -7.0), cv2.INTER_LINEAR)
+    template = RotatedTemplate(reference, margin=44)
+    for near in ((1000.0, 0.0), (-1000.0, 0.0), (0.0, 1000.0), (0.0, -1000.0)):
+        found = template.match(current, 0.0, near)
+        assert found.at_border and math.isfinite(found.peak)
+        assert 40.0 <= max(abs(found.x), abs(found.y)) <= 44.0
+
+
 def test_a_non_finite_previous_shift_searches_the_whole_range():
     # A match that found no peak has a NaN shift; a search "near" it is a search everywhere.
     reference = _textured(seed=5)
