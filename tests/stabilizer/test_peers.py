@@ -232,35 +232,23 @@ def test_sift_refits_on_the_consensus_until_it_settles(monkeypatch):
     assert settled[0].as_tuple() == pytest.approx(settled[1].as_tuple(), abs=1e-9)
 
 
-def test_icp_stops_at_the_first_start_that_fits_else_keeps_the_best_run():
-    # Noisy frames: the best-ranked start fits 99.5% of the edge points, enough to stop there
-    # (accept_fraction 0.5); asked for every point, ICP runs all three starts and still keeps
-    # that run, the one that fits most, not the last one made.
-    reference = _disparity(3)
+@pytest.mark.parametrize("method, seed, never_enough, score", [
+    ("icp", 3, {"accept_fraction": 1.0}, "inlier_fraction"),
+    ("ecc", 0, {"min_correlation": 0.999999}, "correlation")])
+def test_a_multi_start_search_stops_at_the_first_start_that_fits_else_keeps_the_best(
+        method, seed, never_enough, score):
+    # Noisy frames: the best-ranked start fits well enough to stop there (ICP 99.5% of the
+    # edge points, ECC a correlation of 0.996). Asked for more than any start reaches, the
+    # method runs all three starts and still reports that run, the best, not the last one.
+    reference = _disparity(seed)
     current = _tof_noise(apply_motion(reference, Motion(3.0, 5.0, 5.0)),
-                         np.random.default_rng(3))
-    first = IcpEstimator(reference).estimate(current)
-    every_start = IcpEstimator(reference, accept_fraction=1.0).estimate(current)
+                         np.random.default_rng(seed))
+    first = ESTIMATORS[method](reference).estimate(current)
+    every_start = ESTIMATORS[method](reference, **never_enough).estimate(current)
     assert first.ok and first.diagnostics["starts"] == 1
-    assert 0.5 < first.diagnostics["inlier_fraction"] < 1.0
     assert every_start.diagnostics["starts"] == 3
     assert every_start.diagnostics["start_angle_deg"] == first.diagnostics["start_angle_deg"]
-    assert every_start.as_tuple() == first.as_tuple()
-
-
-def test_ecc_stops_at_the_first_start_that_fits_else_keeps_the_best_correlation():
-    # The best-ranked start reaches a correlation of 0.996, enough to stop there; asked for
-    # more than any start reaches, ECC runs all three and reports the best of them (then a
-    # low_correlation failure), not the last one made.
-    reference = _disparity(0)
-    current = _tof_noise(apply_motion(reference, Motion(3.0, 5.0, 5.0)),
-                         np.random.default_rng(0))
-    first = EccEstimator(reference).estimate(current)
-    every_start = EccEstimator(reference, min_correlation=0.999999).estimate(current)
-    assert first.ok and first.diagnostics["starts"] == 1
-    assert every_start.status == "low_correlation" and every_start.diagnostics["starts"] == 3
-    assert every_start.diagnostics["start_angle_deg"] == first.diagnostics["start_angle_deg"]
-    assert every_start.diagnostics["correlation"] == first.diagnostics["correlation"]
+    assert every_start.diagnostics[score] == first.diagnostics[score]
 
 
 @pytest.mark.parametrize("method", METHODS)
