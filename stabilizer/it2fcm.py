@@ -44,6 +44,10 @@ import numpy as np
 from stabilizer.histogram_seeds import N_LEVELS
 from stabilizer.inputs import MAX_ITERATIONS, MAX_KERNEL_SIDE
 
+#: Label masks filtered in one OpenCV call, as the channels of one image: an image holds at most
+#: 128 channels in OpenCV 5 (``CV_CN_MAX``), fewer than the 255 labels a label image can hold.
+MASKS_PER_CALL = 128
+
 
 @dataclass(frozen=True)
 class FuzzyClusters:
@@ -385,8 +389,8 @@ class LabelCleaner:
         """Cleaned uint8 label image; 0 (invalid / unlabelled) stays 0, labels keep their ids.
 
         A pixel keeps its label if its label's cleaned mask holds it; a pixel its own label
-        lost (noise) takes the first other label whose closing covers it, else 0. All label
-        masks are filtered in one call as the channels of one image.
+        lost (noise) takes the first other label whose closing covers it, else 0. The label
+        masks are filtered as the channels of one image, :data:`MASKS_PER_CALL` at a time.
 
         Parameters
         ----------
@@ -408,12 +412,11 @@ class LabelCleaner:
             raise ValueError(f"n_labels must be in 1..255 (uint8 labels); got {n_labels}")
         small = labels.astype(np.uint8, copy=False)  # C <= 255; byte-wide work is faster
         planes = [(small == label).view(np.uint8) for label in range(1, n_labels + 1)]
-        masks = cv2.merge(planes) if n_labels > 1 else planes[0]
-        masks = cv2.morphologyEx(masks, cv2.MORPH_OPEN, self.kernel)
-        masks = cv2.morphologyEx(masks, cv2.MORPH_CLOSE, self.kernel)
+        masks = np.concatenate([self._opened_and_closed(planes[start:start + MASKS_PER_CALL])
+                                for start in range(0, n_labels, MASKS_PER_CALL)], axis=2)
         kept = np.zeros_like(small)  # 1 where a pixel's own label's cleaned mask holds it
-        for before, after in zip(planes, cv2.split(masks) if n_labels > 1 else [masks]):
-            kept |= before & after
+        for label, before in enumerate(planes):
+            kept |= before & masks[:, :, label]
         cleaned = small * kept
         # The few pixels their own label lost: the first label whose mask covers them, or 0.
         lost = np.flatnonzero(cleaned != small)
@@ -429,3 +432,11 @@ class LabelCleaner:
         keep[:n_labels + 1][dropped] = 0
         areas[dropped] = 0
         return cv2.LUT(cleaned, keep), areas[1:]
+
+    def _opened_and_closed(self, planes: list[np.ndarray]) -> np.ndarray:
+        """The masks ``planes`` (H x W uint8 each) opened, then closed, as the channels of one
+        (H, W, len(planes)) image, filtered in one call each."""
+        masks = cv2.merge(planes) if len(planes) > 1 else planes[0]
+        masks = cv2.morphologyEx(masks, cv2.MORPH_OPEN, self.kernel)
+        masks = cv2.morphologyEx(masks, cv2.MORPH_CLOSE, self.kernel)
+        return masks.reshape(*masks.shape[:2], -1)

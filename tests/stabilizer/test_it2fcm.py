@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from stabilizer.histogram_seeds import HistogramSeeds, valid_level_histogram
-from stabilizer.inputs import depth_to_disparity
+from stabilizer.inputs import MAX_ITERATIONS, MAX_KERNEL_SIDE, depth_to_disparity
 from stabilizer.it2fcm import (
     IT2FCM,
+    MASKS_PER_CALL,
     LabelCleaner,
     interval_memberships,
     karnik_mendel,
@@ -196,12 +197,14 @@ def _textbook_fit(level_counts, seeds, m1, m2, tol, max_iter):
     return centres, iteration
 
 
+@pytest.mark.parametrize("m1, m2", [(2.0, 5.0), (1.5, 3.0)])
 @pytest.mark.parametrize("on_levels", [False, True])
-def test_fit_equals_the_formulas_to_the_last_bit(on_levels):
+def test_fit_equals_the_formulas_to_the_last_bit(on_levels, m1, m2):
     """The stacked, buffer-reusing update changes no bit of the centres or the iteration
-    count, also when a seed sits exactly on a gray level (a membership of 1 there)."""
+    count, also when a seed sits exactly on a gray level (a membership of 1 there), for the
+    default fuzzifiers and others (m1 = 2 makes 2 / (m1 - 1) and 2 (m1 - 1) alike)."""
     rng = np.random.default_rng(11)
-    fcm = IT2FCM(m1=2.0, m2=5.0, tol=1e-2, max_iter=100)
+    fcm = IT2FCM(m1=m1, m2=m2, tol=1e-2, max_iter=100)
     for _ in range(25):
         counts = np.zeros(256)
         levels = rng.choice(np.arange(1, 256), rng.integers(3, 200), replace=False)
@@ -210,7 +213,7 @@ def test_fit_equals_the_formulas_to_the_last_bit(on_levels):
         seeds = (rng.choice(levels, n_seeds, replace=False).astype(float) if on_levels
                  else rng.uniform(1, 255, n_seeds))
         fitted = fcm.fit(counts, seeds)
-        centres, iterations = _textbook_fit(counts, seeds, 2.0, 5.0, 1e-2, 100)
+        centres, iterations = _textbook_fit(counts, seeds, m1, m2, 1e-2, 100)
         assert fitted.iterations == iterations
         np.testing.assert_array_equal(fitted.centres, centres)
 
@@ -231,3 +234,50 @@ def test_a_label_of_exactly_min_area_pixels_is_kept_and_one_of_fewer_dropped():
     cleaned, areas = LabelCleaner(min_area=31).with_areas(labels, 2)
     assert areas.tolist() == [450, 0] and not np.any(cleaned == 2)
     assert np.count_nonzero(cleaned == 0) == 30  # dropped, not given to another label
+
+
+def test_each_level_takes_the_cluster_of_its_largest_mean_membership_the_nearest_centre():
+    # Every membership, upper, lower or their mean, ranks the clusters by distance: each level
+    # takes the nearest centre's label; level 0 (invalid) none.
+    counts = np.zeros(256)
+    counts[[20, 21, 22, 90, 91, 180, 181, 182]] = [50, 80, 40, 30, 60, 70, 20, 10]
+    clusters = IT2FCM().fit(counts, np.array([20.0, 90.0, 180.0]))
+    levels = np.arange(1, 256)
+    nearest = 1 + np.argmin(np.abs(levels[:, None] - clusters.centres[None, :]), axis=1)
+    np.testing.assert_array_equal(clusters.level_labels[1:], nearest)
+    assert clusters.level_labels[0] == 0
+
+
+def test_a_pixel_its_own_label_loses_takes_the_label_whose_closing_covers_it():
+    # A one-pixel speck of label 1 inside label 2: the opening removes it from label 1, and
+    # label 2's closing covers it, so it becomes 2 (not unlabelled).
+    labels = np.full((20, 20), 2, np.uint8)
+    labels[:, :5] = 1
+    labels[10, 12] = 1
+    cleaned = LabelCleaner(min_area=0)(labels, 2)
+    assert cleaned[10, 12] == 2 and np.all(cleaned[:, :5] == 1)
+
+
+@pytest.mark.parametrize("kwargs", [{"m1": 1.0001, "m2": 1.0002}, {"max_iter": 1},
+                                    {"max_iter": MAX_ITERATIONS}])
+def test_fcm_parameters_at_their_limits_are_accepted(kwargs):
+    IT2FCM(**kwargs)
+
+
+def test_cleaner_parameters_at_their_limits_are_accepted():
+    LabelCleaner(morph_size=1, min_area=0)
+    LabelCleaner(morph_size=MAX_KERNEL_SIDE)
+
+
+def test_more_labels_than_an_opencv_image_has_channels_are_cleaned_alike():
+    # 255 labels, the most a uint8 label image holds, in blocks with specks of other labels:
+    # more than OpenCV filters in one image (MASKS_PER_CALL), and the same rule as one by one.
+    rng = np.random.default_rng(3)
+    labels = np.repeat(np.repeat(np.arange(1, 256, dtype=np.uint8).reshape(15, 17), 6, axis=0),
+                       6, axis=1)
+    specks = rng.random(labels.shape) < 0.05
+    labels[specks] = rng.integers(0, 256, np.count_nonzero(specks))
+    assert 255 > MASKS_PER_CALL
+    cleaned, areas = LabelCleaner(3, 20).with_areas(labels, 255)
+    np.testing.assert_array_equal(cleaned, _clean_label_by_label(labels, 255, 3, 20))
+    np.testing.assert_array_equal(areas, np.bincount(cleaned.ravel(), minlength=256)[1:])
