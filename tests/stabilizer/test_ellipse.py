@@ -92,6 +92,19 @@ def test_a_set_of_min_points_is_fitted_and_one_fewer_is_not():
                                 fit.half_minor[0]], [30.0, 20.0, 10.0, 4.0], atol=1e-9)
 
 
+def test_a_point_of_weight_zero_counts_for_nothing_and_a_ratio_of_one_orients_every_fit():
+    # Weights may be 0 (a point left out) and min_axis_ratio 1 (no fit is too round).
+    rng = np.random.default_rng(8)
+    x, y = _ellipse_points(60, 60, 25, 10, 70, 50, 1.0, rng)
+    outlier_x, outlier_y = np.r_[x, 150.0], np.r_[y, 5.0]
+    without = fit_ellipses(x, y, np.zeros(x.size, int), 1)
+    ignored = fit_ellipses(outlier_x, outlier_y, np.zeros(x.size + 1, int), 1,
+                           weight=np.r_[np.ones(x.size), 0.0])
+    np.testing.assert_allclose(ignored.as_tuples(), without.as_tuples(), rtol=1e-9)
+    circle_x, circle_y = _ellipse_points(60, 60, 20, 20, 0, 40, 0.0, rng)
+    assert fit_ellipses(circle_x, circle_y, np.zeros(40, int), 1, min_axis_ratio=1.0).oriented[0]
+
+
 def test_weights_equal_to_repetition():
     rng = np.random.default_rng(6)
     x, y = _ellipse_points(60, 60, 25, 10, 70, 50, 1.0, rng)

@@ -84,3 +84,15 @@ def test_flat_and_empty_images():
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         HistogramSeeds(**kwargs)
+
+
+def test_with_no_bin_above_the_ratio_the_densest_bins_centre_of_mass_is_a_seed():
+    # min_ratio 0.9: neither bin holds 90% of the pixels. The densest (levels 150 and 152,
+    # 600 pixels) gives the seed at its centre of mass; the level farthest from it the other.
+    image = _image_of_levels([(50, 400), (150, 300), (152, 300)])
+    np.testing.assert_allclose(HistogramSeeds(min_ratio=0.9)(image).seeds, [50, 151])
+
+
+@pytest.mark.parametrize("kwargs", [{"bin_width": 1}, {"bin_width": 255}, {"min_ratio": 0.0}])
+def test_parameters_at_their_limits_are_accepted(kwargs):
+    assert HistogramSeeds(**kwargs)(_image_of_levels([(60, 50), (180, 50)])).n_clusters == 2

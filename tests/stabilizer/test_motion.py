@@ -18,6 +18,7 @@ from stabilizer.motion import (
     motion_matrix,
     rotation_matrix,
     transform_points,
+    wrap_angle_deg,
 )
 from stabilizer.testing import SR4000_SHAPE
 
@@ -111,3 +112,20 @@ def test_a_warped_image_keeps_its_shape(channels):
     image = np.arange(8 * 8 * channels, dtype=np.float32).reshape(8, 8, channels)
     for warp in (apply_motion, compensate):
         assert warp(image, Motion(3.0, 1.0, -1.0)).shape == (8, 8, channels)
+
+
+@pytest.mark.parametrize("angle, period, wrapped", [
+    (0.0, 360.0, 0.0), (180.0, 360.0, 180.0), (-180.0, 360.0, 180.0), (190.0, 360.0, -170.0),
+    (-190.0, 360.0, 170.0), (725.0, 360.0, 5.0), (90.0, 180.0, 90.0), (-90.0, 180.0, 90.0),
+    (100.0, 180.0, -80.0), (-170.0, 180.0, 10.0)])
+def test_angles_wrap_into_the_half_open_period_about_zero(angle, period, wrapped):
+    # (-period / 2, period / 2]: the upper end is in, the lower one is not.
+    assert wrap_angle_deg(angle, period) == pytest.approx(wrapped, abs=1e-12)
+    np.testing.assert_allclose(wrap_angle_deg(np.array([angle, angle + period]), period),
+                               [wrapped, wrapped], atol=1e-12)
+
+
+def test_a_failed_motion_needs_a_failure_status():
+    assert Motion.failed("no_overlap").status == "no_overlap"
+    with pytest.raises(ValueError, match="other than 'ok'"):
+        Motion.failed("ok")

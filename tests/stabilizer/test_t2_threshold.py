@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from stabilizer.t2_threshold import MEDIAN_FALLBACK, Type2FuzzyThreshold
+from stabilizer.t2_threshold import (MAX_BANDWIDTH_DEG, MEDIAN_FALLBACK,
+                                     MIN_RESOLUTION_DEG, Type2FuzzyThreshold)
 
 
 def test_planted_outliers_are_cut_on_both_sides():
@@ -55,6 +56,18 @@ def test_nan_values_are_ignored():
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         Type2FuzzyThreshold(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"min_values": 1}, {"alpha": 2.0},
+                                    {"bandwidth_deg": MAX_BANDWIDTH_DEG},
+                                    {"resolution_deg": MIN_RESOLUTION_DEG}])
+def test_parameters_at_their_limits_are_accepted(kwargs):
+    assert Type2FuzzyThreshold(**kwargs)(np.array([1.0, 1.1, 0.9])).value == pytest.approx(1.0)
+
+
+def test_a_resolution_as_wide_as_the_bandwidth_is_refused():
+    with pytest.raises(ValueError, match="bandwidth_deg > resolution_deg"):
+        Type2FuzzyThreshold(bandwidth_deg=0.5, resolution_deg=0.5)
 
 
 @pytest.mark.parametrize("values", [[3.0, 1.0], [0.1, 0.7, -0.2, 2.5], [5.0], [1e-9, 1.0 / 3.0]])
