@@ -49,6 +49,18 @@ def test_known_sub_pixel_shift(dx, dy):
     assert match.x - 40 == pytest.approx(dx, abs=0.1)
     assert match.y - 40 == pytest.approx(dy, abs=0.1)
     assert not match.at_border
+    # The parabolas' top lies above the best sample, near the 1 of the continuous match.
+    assert match.peak < match.height < 1.001
+
+
+def test_a_match_at_the_edge_of_the_shifts_is_flagged_and_not_refined_there():
+    # The template is the image's top-left corner: the peak is at shift (0, 0), the first
+    # row and column of the scores, which have no neighbour on one side.
+    image = _textured(seed=1)
+    match = match_template(image, image[:60, :90])
+    assert match.at_border and (match.x, match.y) == (0.0, 0.0)
+    corner = match_template(image, image[-60:, -90:])
+    assert corner.at_border and (corner.x, corner.y) == (image.shape[1] - 90, image.shape[0] - 60)
 
 
 def test_scores_match_scikit_image():
@@ -284,6 +296,9 @@ def test_surface_peak_refines_inside_and_flags_the_edge():
     match = surface_peak(inside, 3)
     assert (match.x, match.y) == (pytest.approx(1.3), pytest.approx(-0.4))
     assert not match.at_border
+    # The height is the surface's top, 0, above the best sample (-0.25): each axis's parabola
+    # adds what it rises above the sample.
+    assert match.peak == pytest.approx(-0.25) and match.height == pytest.approx(0.0)
     edge = -((columns - 5.0) ** 2) - rows ** 2
     assert surface_peak(edge, 3).at_border and surface_peak(edge, 3).x == 3.0
     # A neighbour that cannot be scored (-inf) is an edge too: the peak is not refined there.

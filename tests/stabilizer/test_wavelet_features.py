@@ -100,6 +100,21 @@ def test_decomposition_equals_wavedec2_magnitudes():
     assert [name for _, _, name in general] == [name for _, _, name in features.decompose(masks)]
 
 
+@pytest.mark.parametrize("wavelet", ["haar", "db2"])
+def test_merged_details_are_the_root_sum_of_squares_of_the_three_bands(wavelet):
+    # merge_details: one point set per level, sqrt(cH^2 + cV^2 + cD^2) of that level's bands
+    # (Haar's fast path and the general one alike), up to one factor per subband.
+    masks = np.random.default_rng(2).random((2, 32, 48)) > 0.5
+    merged = WaveletFeatures(wavelet=wavelet, level=2).decompose(masks)
+    separate = {name: band for band, _, name in
+                WaveletFeatures(wavelet=wavelet, level=2, merge_details=False).decompose(masks)}
+    assert [name for _, _, name in merged] == ["D1", "D2", "cA2"]
+    for band, level, name in merged[:2]:
+        expected = np.sqrt(sum(np.square(separate[f"{kind}{level}"].astype(np.float64))
+                               for kind in ("cH", "cV", "cD")))
+        np.testing.assert_allclose(band, expected, rtol=1e-5, atol=1e-5)
+
+
 def test_approximation_points_cover_the_object_at_block_centres():
     features = WaveletFeatures()
     labels = _square_labels()
