@@ -15,6 +15,7 @@ from sim.world.humanoid import LEG_JOINTS, MODEL_NAME
 from sim.world.walking import (GAIT_PRESETS, FallEvent, GaitParams, RobotSimulation,
                                camera_swing)
 from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
+from sim.world.walking.falls import FallDetector
 from sim.world.walking.footsteps import FootstepPlanner, Pose2D
 from sim.world.walking.gait import resolve_gait
 from sim.world.walking.leg_ik import LegIK, rot_x, rot_y, rot_z
@@ -288,8 +289,6 @@ def test_planner_turns_in_place_and_stops_feet_side_by_side():
 
 def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
     # Down a sloped floor the robot stands below z = 0: its height counts from its feet.
-    from sim.world.walking.falls import FallDetector
-
     sim = RobotSimulation(compile_world(assemble()))
     model, data = sim.model, mujoco.MjData(sim.model)
     data.qpos[:] = sim.data.qpos
@@ -406,8 +405,6 @@ def _posed(model, turn_x_deg: float, lift_m: float):
 def test_a_torso_tilted_beyond_the_limit_is_a_fall_by_its_tilt(model):
     # Turned 60 deg in the air (its height check off): past 45 deg it has fallen, within
     # 70 deg it has not.
-    from sim.world.walking.falls import FallDetector
-
     data = _posed(model, 60.0, 0.3)
     assert data.ncon == 0
     assert FallDetector(model, min_torso_height_m=0.0).check(data).reason == "torso_tilt"
@@ -417,8 +414,6 @@ def test_a_torso_tilted_beyond_the_limit_is_a_fall_by_its_tilt(model):
 def test_a_body_other_than_a_foot_on_the_floor_is_a_fall_by_contact(model):
     # Lying on its side on the floor (height and tilt checks off): a contact of a body that
     # is not a foot.
-    from sim.world.walking.falls import FallDetector
-
     data = _posed(model, 90.0, -0.2)
     fall = FallDetector(model, min_torso_height_m=0.0, max_tilt_deg=180.0).check(data)
     assert fall is not None and fall.reason.startswith("contact:")
