@@ -835,6 +835,24 @@ def test_depth_disagreement_is_near_zero_at_the_truth_and_large_off_it():
     assert disagreement(holed, REFERENCE, Motion(0.0, 0.0, 0.0)) == 0.0
 
 
+@pytest.mark.parametrize("levels, share, noise, agree, disagree", [
+    (2.0, 0.0, 0.0, (102, 98), (103, 97)),      # 2 gray levels either way, not 3
+    (0.0, 0.1, 0.0, (111, 91), (112, 90)),      # a tenth of the current pixel's disparity
+    (2.0, 0.0, 1.5, (103, 97), (104, 96))])     # plus the noise allowance, floored
+def test_a_pixel_disagrees_only_beyond_its_tolerance(levels, share, noise, agree, disagree):
+    # A flat reference at 100 against flat current frames: at the tolerance the depths
+    # agree, one gray level beyond it they do not (docs: "more than ... below or above").
+    reference = np.full((20, 30), 100, np.uint8)
+
+    def share_disagreeing(value: int) -> float:
+        current = np.full_like(reference, value)
+        return depth_disagreement(reference, disparity_range(reference), current,
+                                  Motion(0.0, 0.0, 0.0), levels, share, noise)
+
+    assert [share_disagreeing(value) for value in agree] == [0.0, 0.0]
+    assert [share_disagreeing(value) for value in disagree] == [1.0, 1.0]
+
+
 def test_the_depth_tolerance_grows_with_the_current_frames_noise():
     """The reference's noise is within its 3 x 3 range, the current pixel's is not: without the
     noise term, a noise of 16 gray levels makes 7% of the true motion's pixels disagree."""
