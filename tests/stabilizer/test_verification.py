@@ -21,7 +21,8 @@ from stabilizer.api import MAX_SIDE, _estimator_class
 from stabilizer.motion import motion_from_rotation, transform_points
 from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
-from stabilizer.verification import (UNVERIFIED, VerificationParams, Verifier, _half_resolution,
+from stabilizer.verification import (FAR_REACH_PX, UNVERIFIED, VerificationParams, Verifier,
+                                     _half_resolution,
                                      _median, depth_disagreement, disparity_range, edge_image,
                                      edge_images, noise_level, shared_verifier, step_response,
                                      structure_correlation)
@@ -148,6 +149,21 @@ def test_an_estimate_that_follows_the_near_surfaces_across_the_far_ones_fails():
     assert offset == pytest.approx(10.0, abs=1.0) and gain > VerificationParams().far_margin
     rigid = Verifier(reference)(near_and_far_frame(6, 6), Motion(0.0, 6.0, 0.0))
     assert rigid.ok and rigid.diagnostics["verify_far_offset"][0] < 1.0
+
+
+def test_the_far_depths_are_searched_up_to_far_reach_px():
+    # The identity against frames shifted 12 and 24 px: the far depths' edges line up best
+    # 12 px away, found; 24 px lies beyond the search's 16 px along each axis, not found.
+    verifier = Verifier(REFERENCE)
+
+    def far_offset_px(shift_px: float) -> float:
+        measured = verifier.measure(apply_motion(REFERENCE, Motion(0.0, shift_px, 0.0)))
+        return verifier.far_offset(verifier._compensated_half(measured.half,
+                                                               Motion(0.0, 0.0, 0.0)))[0]
+
+    assert FAR_REACH_PX == 16
+    assert far_offset_px(12.0) == pytest.approx(12.0, abs=0.5)
+    assert far_offset_px(24.0) < 23.0
 
 
 def test_an_estimate_away_from_the_optimum_fails():
