@@ -166,6 +166,21 @@ def test_the_far_depths_are_searched_up_to_far_reach_px():
     assert far_offset_px(24.0) < 23.0
 
 
+def test_the_far_depths_are_those_at_or_below_the_median_of_the_measured_disparities():
+    # A far wall (disparity 60, 40 columns) beside a nearer one (200, 36 columns), the other
+    # 100 columns unmeasured: the median of the measured pixels is the far wall's own level,
+    # and the far wall is the far half. (Over every pixel the median would be 0, and nothing
+    # at or below it measured.)
+    reference = np.zeros(SR4000_SHAPE, np.uint8)
+    reference[:, :40] = 60
+    reference[:, 40:76] = 200
+    far = Verifier(reference)._reference_far
+    assert far is not None
+    # At half resolution (72 rows): the far wall's 20 columns and the 2 of the nearer wall
+    # within the smoothing's reach of its edge; none by the unmeasured columns.
+    assert far.n_valid == 22 * 72
+
+
 def test_an_estimate_away_from_the_optimum_fails():
     """4 degrees off: the edges still overlap enough for the correlation, but the check's own
     optimum lies at the truth, farther than max_offset_deg from the estimate."""
