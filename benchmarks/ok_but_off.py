@@ -83,11 +83,14 @@ def looked_at(suite_dir: Path) -> list[dict]:
 
 def table(found: list[dict]) -> str:
     """The rows of :func:`looked_at` as a Markdown table."""
-    lines = ["| Method | Sequence | Frame | Error (deg / px / px) | Truth residual (px) | "
-             "End-point error / floor (px) | Sensor: estimate | Sensor: truth | "
-             "Sensor: edges' optimum off the truth (deg) | Exact: estimate | Exact: truth | "
-             "Exact: edges' optimum off the truth (deg) |",
-             "|" + "---|" * 12]
+    from sim.harness.report import markdown_table
+
+    header = ["Method", "Sequence", "Frame", "Error (deg / px / px)", "Truth residual (px)",
+              "End-point error / floor (px)"]
+    for depth in ("Sensor", "Exact"):
+        header += [f"{depth}: estimate", f"{depth}: truth",
+                   f"{depth}: edges' optimum off the truth (deg)"]
+    rows = []
     for row in found:
         cells = [row["method"], row["sequence"], str(row["frame"]),
                  f"{row['rotation_deg']:.2f} / {row['x_px']:.2f} / {row['y_px']:.2f}",
@@ -95,8 +98,8 @@ def table(found: list[dict]) -> str:
         for depth in ("sensor", "exact"):
             cells += [row[depth]["estimate"], row[depth]["truth"],
                       f"{row[depth]['optimum_off_truth_deg']:.1f}"]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append(cells)
+    return markdown_table(header, rows)
 
 
 def main(argv: list[str] | None = None) -> int:
