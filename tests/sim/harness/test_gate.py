@@ -114,6 +114,19 @@ def test_run_gate_exit_codes_and_baseline_update(tmp_path, monkeypatch, capsys):
     assert "(0 worse, 1 better" in capsys.readouterr().out
 
 
+def test_a_failed_gate_counts_its_moved_figures_by_direction(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "baseline.json"
+    monkeypatch.setattr(gate, "expected_coverage", lambda: {"ci_a": ("t2fuzzy", gate.TRUTH)})
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (BASE, {}))
+    assert gate.run_gate(path, update=True) == 0
+    current = _with(failed_frames=9, x_mean_px=0.0)  # one worse, one better
+    current["ci_a"][gate.TRUTH] = dict(TRUTH_FIGURES, dy_mean_px=5.0)  # moved, no direction
+    monkeypatch.setattr(gate, "run_ci_scenarios", lambda out_dir: (current, {}))
+    assert gate.run_gate(path) == 1
+    assert "3 figure(s) moved" in (out := capsys.readouterr().out)
+    assert "(1 worse, 1 better, 1 changed without a better way" in out
+
+
 def test_an_incomplete_run_cannot_be_gated():
     metrics = {"status": "fell", "scenario": {"name": "ci_a"}, "run": {"message": "fell at 1 s"},
                "summary": {"run": {}}}

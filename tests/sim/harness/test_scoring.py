@@ -95,6 +95,12 @@ def test_masked_psnr_uses_pixels_valid_in_both():
     assert math.isnan(masked_psnr_db(first, np.zeros_like(first)))
 
 
+@pytest.mark.parametrize("peak, cap_db", [(0.0, 100.0), (255.0, 0.0), (-1.0, 100.0)])
+def test_itf_needs_a_positive_peak_and_cap(peak, cap_db):
+    with pytest.raises(ValueError, match="peak and cap_db must be positive"):
+        ItfAccumulator(peak=peak, cap_db=cap_db)
+
+
 def test_itf_is_higher_for_a_well_compensated_stream():
     rng = np.random.default_rng(1)
     reference = np.zeros((144, 176), np.uint8)
