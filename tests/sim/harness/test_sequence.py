@@ -77,6 +77,13 @@ def test_depths_a_sequence_cannot_hold_are_refused_and_no_surface_is_stored_as_0
     encoded = encode_frame(frame, no_surface_depth_m=50.0, depth_unit_m=FINE_DEPTH_UNIT_M)
     assert encoded.exact[0, 0] == 0 and np.all(encoded.exact.ravel()[1:] == 4000)
     assert np.all(encoded.depth == 20000)
+    # The farthest depth the unit holds is stored; half a unit beyond it rounds past it.
+    farthest = np.full((2, 3), UINT16_MAX * FINE_DEPTH_UNIT_M)
+    assert np.all(encode_frame(dataclasses.replace(frame, depth_m=farthest), 50.0,
+                               FINE_DEPTH_UNIT_M).depth == UINT16_MAX)
+    beyond = dataclasses.replace(frame, depth_m=farthest + 0.6 * FINE_DEPTH_UNIT_M)
+    with pytest.raises(ValueError, match=r"reported depth reaches 6.55 m"):
+        encode_frame(beyond, 50.0, FINE_DEPTH_UNIT_M)
     far = dataclasses.replace(frame, depth_m=np.full((2, 3), 7.0, np.float32))
     with pytest.raises(ValueError, match=r"frame 0's reported depth reaches 7.00 m; a sequence "
                                          r"stores at most 6.5535 m"):
@@ -194,6 +201,8 @@ def test_a_frame_without_a_truth_reads_back_as_one(sequence_dir, tmp_path):
                               "cy": 0}), "sequence.json: intrinsics.width"),
     (_set_json("intrinsics", {"width": 176, "height": 144, "fx": 0, "fy": 1, "cx": 0,
                               "cy": 0}), "sequence.json: intrinsics.fx"),
+    (_set_json("intrinsics", {"width": 176, "height": 0, "fx": 1, "fy": 1, "cx": 0,
+                              "cy": 0}), "sequence.json: intrinsics.height: is 0"),
     (_set_json("intrinsics", {"width": 176, "height": 144, "fx": 1, "fy": 1, "cx": 0}),
      "sequence.json: intrinsics.cy: is missing"),
     (_set_json("sim_time_s", "abc"), "sequence.json: sim_time_s"),
