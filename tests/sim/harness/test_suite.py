@@ -398,6 +398,28 @@ def test_few_sequences_give_intervals_but_no_verdict(tmp_path):
     assert "too few sequences for a verdict" in result.markdown
 
 
+@pytest.mark.parametrize("n_sequences, verdict", [(9, False), (10, True)])
+def test_a_difference_gets_a_verdict_from_ten_sequences_on(tmp_path, n_sequences, verdict):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight",
+                                  "scene_seeds": list(range(n_sequences))}])
+    errors = [{"t2fuzzy": 0.1 * i, "sift": 0.1 * i + 1.0} for i in range(n_sequences)]
+    result = write_suite_outputs(tmp_path, spec, outcomes_of(spec, tmp_path, errors))
+    rotation = next(d for d in result.figures["differences"] if d["figure"] == ROTATION)
+    assert rotation["n"] == n_sequences and rotation["high"] < 0
+    assert rotation["clear"] is verdict and rotation["lower"] == "t2fuzzy"
+    assert ("t2fuzzy is lower (interval excludes 0)" in result.markdown) is verdict
+    assert ("too few sequences for a verdict (n < 10)" in result.markdown) is not verdict
+
+
+def test_the_summary_counts_the_sequences_that_fell(tmp_path):
+    spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6, 7]}])
+    outcomes = outcomes_of(spec, tmp_path, [{"t2fuzzy": 0.1, "sift": 0.2}] * 3)
+    outcomes[1].metrics["status"] = "fell"
+    result = write_suite_outputs(tmp_path, spec, outcomes)
+    assert "3 planned, 3 finished (0 already done before this call), 0 failed, 1 fell" in \
+        result.markdown
+
+
 def test_an_interrupted_suite_writes_the_tables_of_the_runs_finished(tmp_path, monkeypatch):
     spec = small_spec(sequences=[{"scenario": "corridor_straight", "scene_seeds": [5, 6]}])
 
