@@ -14,6 +14,7 @@ from scenarios import SCENARIOS_DIR
 from sim.harness.scenario import (ScenarioError, commanded_trajectory, list_scenarios,
                                   load_scenario, resolve_scenario_path)
 from sim.world.scenes import SCENES, build_scene
+from sim.world.scenes.floor import MAX_BUMP_HEIGHT_M, MAX_SLOPE_DEG
 from sim.world.scenes.lane import path_distance
 from sim.world.sensor.tof_model import TOF_PRESETS
 from stabilizer.api import available_methods
@@ -420,6 +421,9 @@ def test_every_sensor_preset_takes_the_largest_noise_scale(tmp_path):
         assert scenario.sensor.noise_scale == 100.0
 
 
+LONG_STEPS = '[gait]\noverrides = { step_length_max_m = 0.3, step_yaw_max_deg = 50.0 }\n'
+
+
 @pytest.mark.parametrize("text, refused", [
     ('duration_s = 3600.0\n', None),
     ('duration_s = 3600.0025\n', "0 < duration_s <= 3600"),
@@ -434,11 +438,29 @@ def test_every_sensor_preset_takes_the_largest_noise_scale(tmp_path):
      None),  # the largest impulse, ending with the scenario
     ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 1.0\n', None),
     ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 1.0025\n', "0.0025 to 1 s"),
+    ('duration_s = 0.0\n', "0 < duration_s <= 3600"),
+    ('[sensor]\nfps = 54.0\n', None),  # the SR4000's fastest
+    ('[sensor]\nfps = 0.0\n', "0 < fps <= 54"),
+    ('[floor]\nslope_deg = 0.0\nslope_direction_deg = -360.0\nbump_height_m = 0.0\n', None),
+    ('[floor]\nslope_deg = SLOPE\nslope_direction_deg = 360.0\nbump_height_m = BUMP\n', None),
+    ('[floor]\nslope_direction_deg = 360.5\n', "from -360 to 360"),
+    ('[[commands]]\nt = 0.0\nspeed = 0.0\n', None),
+    # A gait of long steps: the command's own range is the limit.
+    (f'{LONG_STEPS}[[commands]]\nt = 0.0\nspeed = 0.5\nyaw_rate = 90.0\n', None),
+    (f'{LONG_STEPS}[[commands]]\nt = 0.0\nyaw_rate = -90.0\n', None),
+    (f'{LONG_STEPS}[[commands]]\nt = 0.0\nspeed = 0.51\n', "0 to 0.5 m/s"),
+    (f'{LONG_STEPS}[[commands]]\nt = 0.0\nyaw_rate = 90.5\n', "-90 to 90 deg/s"),
+    ('[[pushes]]\nt = 0.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 0.0025\n', None),
+    ('[[pushes]]\nt = 1.0\nimpulse_ns = [0.0, 1.0, 0.0]\nduration_s = 0.00125\n',
+     "0.0025 to 1 s"),
+    ('[[commands]]\nt = 0.0\n[[commands]]\nt = 2.0\n[[commands]]\nt = 2.0\n', "increase"),
+    ('duration_s = 5.0\n[[commands]]\nt = 0.0\n[[commands]]\nt = 5.0\n', "before duration_s"),
     # Without duration_s, the default 20 s bounds the commands and pushes.
     ('[[commands]]\nt = 0.0\n[[commands]]\nt = 21.0\n', "increasing"),
     ('[[pushes]]\nt = 21.0\nimpulse_ns = [0.0, 1.0, 0.0]\n', "before duration_s"),
 ])
 def test_values_at_each_limit_load_and_values_just_beyond_are_refused(tmp_path, text, refused):
+    text = text.replace("SLOPE", repr(MAX_SLOPE_DEG)).replace("BUMP", repr(MAX_BUMP_HEIGHT_M))
     path = write(tmp_path, text)
     if refused is None:
         load_scenario(path)
