@@ -97,20 +97,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("sequence", type=Path, help="a sequence folder (egostab record)")
     parser.add_argument("out", type=Path, help="the estimates file to write (CSV)")
     args = parser.parse_args(argv)
+    refused = "accepted: a sequence folder written by `egostab record`"
     try:
         header = json.loads((args.sequence / "sequence.json").read_text(encoding="utf-8"))
+        if not isinstance(header, dict) or header.get("format") != FORMAT:
+            raise ValueError(f"sequence.json is not of the format {FORMAT}")
+        shape = (int(header["intrinsics"]["height"]), int(header["intrinsics"]["width"]))
+        depth_unit_m = float(header["depth_unit_m"])
         with open(args.sequence / "truth.csv", newline="", encoding="utf-8") as handle:
             rows = [(int(row["frame"]), int(row["reference_frame"]))
                     for row in csv.DictReader(handle)]
-    except (OSError, ValueError, KeyError) as error:
+    except (OSError, ValueError, KeyError, TypeError) as error:
         print(f"orb_estimates: {args.sequence} is not a readable sequence folder ({error}); "
-              f"accepted: a folder written by `egostab record`", file=sys.stderr)
+              f"{refused}", file=sys.stderr)
         return 2
-    if header.get("format") != FORMAT:
-        print(f"orb_estimates: {args.sequence}/sequence.json has format "
-              f"{header.get('format')!r}; accepted: {FORMAT!r}", file=sys.stderr)
-        return 2
-    shape = (header["intrinsics"]["height"], header["intrinsics"]["width"])
     orb = Orb()
 
     def features(frame: int):
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         units = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
         if units is None or units.dtype != np.uint16 or units.shape != shape:
             raise ValueError(f"{path} is not a {shape[1]} x {shape[0]} 16-bit PNG")
-        return orb.features(disparity_image(units, header["depth_unit_m"]))
+        return orb.features(disparity_image(units, depth_unit_m))
 
     # Written under another name and renamed when complete: an interrupted run leaves no
     # half-written estimates file.
@@ -141,9 +141,15 @@ def main(argv: list[str] | None = None) -> int:
                                 if status == "ok" else [frame, "", "", "", status])
         os.replace(partial, args.out)
     except ValueError as error:
-        print(f"orb_estimates: {error}; accepted: a sequence folder written by `egostab record`",
-              file=sys.stderr)
+        print(f"orb_estimates: {error}; {refused}", file=sys.stderr)
         return 2
+    except OSError as error:
+        print(f"orb_estimates: cannot write {args.out} ({error.strerror}); accepted: a path in "
+              f"a folder that exists and can be written", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("orb_estimates: interrupted; no estimates file written", file=sys.stderr)
+        return 130
     finally:
         partial.unlink(missing_ok=True)
     return 0

@@ -4,6 +4,7 @@ estimates that score as the same estimator does as a plugin."""
 from __future__ import annotations
 
 import csv
+import importlib.util
 import math
 import os
 import shutil
@@ -78,13 +79,22 @@ def test_the_file_scores_as_the_plugin_does(scored):
                                                                              key, a, b)
 
 
-def test_a_folder_that_is_not_a_sequence_is_refused_in_one_line(tmp_path):
+@pytest.mark.parametrize("header", [None, '{"format": "egostab-sequence/9"}', '[1, 2]'])
+def test_a_folder_that_is_not_a_sequence_is_refused_in_one_line(tmp_path, header):
+    if header is not None:
+        (tmp_path / "sequence.json").write_text(header)
     refused = _program(tmp_path, tmp_path / "orb.csv")
     assert refused.returncode == 2 and refused.stdout == ""
     assert len(refused.stderr.splitlines()) == 1
     assert "is not a readable sequence folder" in refused.stderr
-    assert "accepted: a folder written by `egostab record`" in refused.stderr
+    assert "accepted: a sequence folder written by `egostab record`" in refused.stderr
     assert not (tmp_path / "orb.csv").exists()
+
+
+def test_an_estimates_file_that_cannot_be_written_is_refused_in_one_line(sequence, tmp_path):
+    refused = _program(sequence, tmp_path / "missing" / "orb.csv")
+    assert refused.returncode == 2 and len(refused.stderr.splitlines()) == 1
+    assert "cannot write" in refused.stderr and "No such file or directory" in refused.stderr
 
 
 def test_a_missing_frame_image_is_refused_and_leaves_no_file(sequence, tmp_path):
@@ -94,3 +104,21 @@ def test_a_missing_frame_image_is_refused_and_leaves_no_file(sequence, tmp_path)
     assert refused.returncode == 2 and len(refused.stderr.splitlines()) == 1
     assert "000007.png is missing" in refused.stderr
     assert list(tmp_path.glob("orb.csv*")) == []
+
+
+def test_an_interrupted_program_leaves_no_file(sequence, tmp_path, monkeypatch, capsys):
+    spec = importlib.util.spec_from_file_location("orb_estimates", PROGRAM)
+    program = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(program)
+    calls = []
+
+    def interrupted(self, reference, current, shape):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return "too_few_matches", ()
+
+    monkeypatch.setattr(program.Orb, "motion", interrupted)
+    assert program.main([str(sequence), str(tmp_path / "orb.csv")]) == 130
+    assert "interrupted; no estimates file written" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
