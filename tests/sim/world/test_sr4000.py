@@ -349,3 +349,20 @@ def test_sub_renders_of_an_unchanged_state_render_once():
         moved = sensor.read_frame(1)
     assert len(renders) == 1 + 3
     assert moved.valid.any()
+
+
+def test_the_reflectivity_is_read_once_a_frame_from_the_centre_sub_render():
+    """The ToF model builds the reported depth on the middle sub-render, so the pixels'
+    materials are read there, once a frame (a segmentation render each)."""
+    model, data, camera = _edge_scene()
+    params = dataclasses.replace(DEFAULT, motion_blur_subframes=5)
+    with SR4000(model, camera, params) as sensor:
+        read_after = []
+        read = sensor._read_reflectivity
+        sensor._read_reflectivity = lambda: read_after.append(len(sensor._exposures)) or read()
+        for frame in range(2):
+            for step in range(5):
+                data.mocap_pos[0] = [0.0, 0.01 * step, 0.55]
+                sensor.expose(data)
+            sensor.read_frame(frame)
+    assert read_after == [3, 3]  # after the third of five exposures, each frame

@@ -112,6 +112,9 @@ def test_wiggling_is_a_sinusoid_over_a_quarter_of_the_unambiguous_range():
     ("mixed_pixel_weight", 1.0, 1.01), ("motion_blur_subframes", 16, 17),
     ("integration_time_s", 0.0258, 0.0259), ("noise_sigma_ref_m", 20.0, 20.5),
     ("max_range_m", 0.11, 0.1), ("saturation_amplitude", 0.021, 0.02),
+    ("reflectivity", 1e-6, 0.0), ("integration_time_s", 1e-6, 0.0),
+    ("noise_sigma_max_m", DEFAULT.noise_sigma_min_m, DEFAULT.noise_sigma_min_m - 1e-6),
+    ("noise_sigma_max_m", 20.0, 20.5),
 ])
 def test_each_setting_is_accepted_up_to_its_documented_limit_and_refused_beyond(
         field, accepted, refused):
