@@ -16,10 +16,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from scipy.ndimage import gaussian_filter  # noqa: E402
 
 from sim.world.scenes import (SCENES, Floor, FloorParameterError, SceneParameterError,  # noqa: E402
                               build_scene)
-from sim.world.scenes.floor import START_FLAT_RADIUS_M  # noqa: E402
+from sim.world.scenes.floor import START_FLAT_RADIUS_M, bump_field  # noqa: E402
 from sim.world.scenes.lane import lane_intrusions, polyline  # noqa: E402
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
 from sim.world.sensor.tof_model import TOF_PRESETS  # noqa: E402
@@ -271,6 +272,33 @@ def test_a_rough_floor_has_the_requested_slope_and_bumps(name):
     # The field fades to 0 at its edges: it meets the plane without a step.
     edges = np.concatenate((bumps.heights[[0, -1], :].ravel(), bumps.heights[:, [0, -1]].ravel()))
     assert np.all(edges == 0.0)
+
+
+def test_the_bump_field_is_the_documented_recipe():
+    """docs/scenes.md, "Bumps": white noise on a 2 cm grid over the path's bounding box plus
+    1 m on every side, from the seed's own stream SeedSequence(seed, spawn_key=(1,)), smoothed
+    by a Gaussian of 5 cm, faded in (a raised cosine) over 25 cm from the field's border and
+    from 20 cm around the start, the highest point 1 (times bump_height_m)."""
+    path = np.array([[0.5, -0.3], [2.0, 0.5], [3.0, -1.0]])
+    field = bump_field(path, 7, 0.004)
+    low, high = path.min(axis=0) - 1.0, path.max(axis=0) + 1.0
+    cols, rows = np.ceil((high - low) / 0.02).astype(int) + 1
+    assert field.heights.shape == (rows, cols) and field.height_m == 0.004
+    x, y = low[0] + 0.02 * np.arange(cols), low[1] + 0.02 * np.arange(rows)
+    np.testing.assert_allclose(field.grid_xy()[0], x, atol=1e-12)
+    np.testing.assert_allclose(field.grid_xy()[1], y, atol=1e-12)
+    white = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1,)))
+    noise = gaussian_filter(white.standard_normal((rows, cols)), 0.05 / 0.02, mode="reflect")
+
+    def fade_in(distance):
+        return 0.5 - 0.5 * np.cos(math.pi * np.clip(distance / 0.25, 0.0, 1.0))
+
+    grid_x, grid_y = np.meshgrid(x, y)
+    to_border = np.minimum(np.minimum(grid_x - x[0], x[-1] - grid_x),
+                           np.minimum(grid_y - y[0], y[-1] - grid_y))
+    to_start = np.hypot(grid_x - path[0, 0], grid_y - path[0, 1]) - 0.2
+    expected = (noise - noise.min()) * fade_in(to_border) * fade_in(to_start)
+    np.testing.assert_allclose(field.heights, expected / expected.max(), rtol=0, atol=1e-12)
 
 
 def test_the_building_stands_on_the_sloped_floor_and_keeps_its_layout():
