@@ -18,7 +18,7 @@ import pytest
 import stabilizer
 from stabilizer import Motion, Stabilizer, apply_motion, available_methods, estimate
 from stabilizer.api import MAX_SIDE, _estimator_class
-from stabilizer.motion import motion_from_rotation, transform_points
+from stabilizer.motion import motion_from_rotation, rotation_matrix, transform_points
 from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (FAR_REACH_PX, UNVERIFIED, VerificationParams, Verifier,
@@ -320,6 +320,12 @@ def test_a_sideways_estimate_along_a_ridge_without_a_second_peak_is_ambiguous(se
     assert lead < VerificationParams().ridge_margin
     rival = Motion(*checked.diagnostics["verify_candidate"])  # along the horizon
     assert abs(rival.dx - sideways.dx) > 2.0 and abs(rival.dy - sideways.dy) < 3.0
+    # The search runs on the frame compensated by the estimate, at half resolution: the rival
+    # is the estimate moved by a whole number of half-resolution pixels, turned by its rotation.
+    shift = (rotation_matrix(math.radians(sideways.angle_deg)).T
+             @ [rival.dx - sideways.dx, rival.dy - sideways.dy]) / 2.0
+    np.testing.assert_allclose(shift, np.round(shift), rtol=0, atol=1e-9)
+    assert np.abs(shift).max() >= 1.0
     assert Verifier(reference, VerificationParams(ridge_margin=-1.0))(current, sideways).ok
 
 
