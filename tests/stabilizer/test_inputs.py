@@ -4,7 +4,8 @@ image of docs/method.md, section 0."""
 import numpy as np
 import pytest
 
-from stabilizer.inputs import DEFAULT_FAR_M, DEFAULT_NEAR_M, depth_to_disparity
+from stabilizer.inputs import (DEFAULT_FAR_M, DEFAULT_NEAR_M, check_integer, check_size,
+                               depth_to_disparity)
 
 
 def test_disparity_falls_as_one_over_depth_from_255_at_the_near_limit():
@@ -34,7 +35,28 @@ def test_depths_beyond_255_near_limits_stay_valid_at_level_1():
 
 @pytest.mark.parametrize("depth, near_m, far_m, match", [
     (np.ones(3), 0.5, 10.0, "2-D"), (np.ones((2, 2), np.uint16), 0.5, 10.0, "float"),
-    (np.ones((2, 2)), 0.0, 10.0, "near_m"), (np.ones((2, 2)), 2.0, 1.0, "near_m")])
+    (np.ones((2, 2)), 0.0, 10.0, "near_m"), (np.ones((2, 2)), 2.0, 1.0, "near_m"),
+    (np.ones((2, 2)), 2.0, 2.0, "near_m")])
 def test_bad_depth_or_limits_are_value_errors(depth, near_m, far_m, match):
     with pytest.raises(ValueError, match=match):
         depth_to_disparity(depth, near_m, far_m)
+
+
+def test_sizes_at_the_limits_are_accepted_and_a_pixel_beyond_is_refused():
+    for shape in ((96, 200), (200, 96), (96, 4096), (4096, 96)):
+        check_size(shape, "frame", 96, 4096)
+    for shape in ((95, 200), (200, 95), (96, 4097), (4097, 96)):
+        with pytest.raises(ValueError, match="at least 96 x 96 pixels and at most 4096 x 4096"):
+            check_size(shape, "frame", 96, 4096)
+    check_size((96, 10**6), "frame", 96)  # no upper limit
+
+
+def test_integers_at_the_limits_are_accepted_and_one_beyond_is_refused():
+    for value in (3, 5, np.int64(4)):
+        check_integer("n", value, 3, 5)
+    for value in (2, 6, 4.0, True):
+        with pytest.raises(ValueError, match="n must be an integer from 3 to 5"):
+            check_integer("n", value, 3, 5)
+    check_integer("n", 10**9, 3)
+    with pytest.raises(ValueError, match="n must be an integer >= 3"):
+        check_integer("n", 2, 3)
