@@ -442,7 +442,8 @@ LONG_STEPS = '[gait]\noverrides = { step_length_max_m = 0.3, step_yaw_max_deg = 
     ('[sensor]\nfps = 54.0\n', None),  # the SR4000's fastest
     ('[sensor]\nfps = 0.0\n', "0 < fps <= 54"),
     ('[floor]\nslope_deg = 0.0\nslope_direction_deg = -360.0\nbump_height_m = 0.0\n', None),
-    ('[floor]\nslope_deg = SLOPE\nslope_direction_deg = 360.0\nbump_height_m = BUMP\n', None),
+    (f'[floor]\nslope_deg = {MAX_SLOPE_DEG!r}\nslope_direction_deg = 360.0\n'
+     f'bump_height_m = {MAX_BUMP_HEIGHT_M!r}\n', None),
     ('[floor]\nslope_direction_deg = 360.5\n', "from -360 to 360"),
     ('[[commands]]\nt = 0.0\nspeed = 0.0\n', None),
     # A gait of long steps: the command's own range is the limit.
@@ -460,7 +461,6 @@ LONG_STEPS = '[gait]\noverrides = { step_length_max_m = 0.3, step_yaw_max_deg = 
     ('[[pushes]]\nt = 21.0\nimpulse_ns = [0.0, 1.0, 0.0]\n', "before duration_s"),
 ])
 def test_values_at_each_limit_load_and_values_just_beyond_are_refused(tmp_path, text, refused):
-    text = text.replace("SLOPE", repr(MAX_SLOPE_DEG)).replace("BUMP", repr(MAX_BUMP_HEIGHT_M))
     path = write(tmp_path, text)
     if refused is None:
         load_scenario(path)
