@@ -80,6 +80,9 @@ def test_objects_pair_by_nearest_cluster_centre_then_by_area():
     assert match_objects(reference, _objects([104.0, 101.0], [100.0, 900.0]), 10.0) == [(0, 1)]
     assert match_objects(reference, _objects([98.0, 102.0, 61.0], [900.0, 120.0, 50.0]),
                          10.0) == [(1, 2), (0, 1)]
+    # The ratio of the areas, not their size: a tenth of the area is farther than half again.
+    assert match_objects(_objects([100.0], [100.0]), _objects([98.0, 102.0], [10.0, 150.0]),
+                         10.0) == [(0, 1)]
 
 
 def test_objects_whose_centres_differ_by_more_than_the_limit_stay_unmatched():
