@@ -232,11 +232,11 @@ def test_sift_refits_on_the_consensus_until_it_settles(monkeypatch):
     assert settled[0].as_tuple() == pytest.approx(settled[1].as_tuple(), abs=1e-9)
 
 
-@pytest.mark.parametrize("method, seed, never_enough, score", [
-    ("icp", 3, {"accept_fraction": 1.0}, "inlier_fraction"),
-    ("ecc", 0, {"min_correlation": 0.999999}, "correlation")])
+@pytest.mark.parametrize("method, seed, never_enough, score, every_start_status", [
+    ("icp", 3, {"accept_fraction": 1.0}, "inlier_fraction", "ok"),
+    ("ecc", 0, {"min_correlation": 0.999999}, "correlation", "low_correlation")])
 def test_a_multi_start_search_stops_at_the_first_start_that_fits_else_keeps_the_best(
-        method, seed, never_enough, score):
+        method, seed, never_enough, score, every_start_status):
     # Noisy frames: the best-ranked start fits well enough to stop there (ICP 99.5% of the
     # edge points, ECC a correlation of 0.996). Asked for more than any start reaches, the
     # method runs all three starts and still reports that run, the best, not the last one.
@@ -249,6 +249,11 @@ def test_a_multi_start_search_stops_at_the_first_start_that_fits_else_keeps_the_
     assert every_start.diagnostics["starts"] == 3
     assert every_start.diagnostics["start_angle_deg"] == first.diagnostics["start_angle_deg"]
     assert every_start.diagnostics[score] == first.diagnostics[score]
+    (limit,) = never_enough.values()
+    assert 0.5 < first.diagnostics[score] < limit
+    assert every_start.status == every_start_status
+    if every_start.ok:  # the best run's motion, not the last start's
+        assert every_start.as_tuple() == first.as_tuple()
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -22,10 +22,9 @@ from stabilizer.motion import motion_from_rotation, rotation_matrix, transform_p
 from stabilizer.t2fuzzy import TranslationParams
 from stabilizer.testing import SR4000_SHAPE, make_depth_scene
 from stabilizer.verification import (FAR_REACH_PX, UNVERIFIED, VerificationParams, Verifier,
-                                     _half_resolution,
-                                     _median, depth_disagreement, disparity_range, edge_image,
-                                     edge_images, noise_level, shared_verifier, step_response,
-                                     structure_correlation)
+                                     _half_resolution, _median, depth_disagreement,
+                                     disparity_range, edge_image, edge_images, noise_level,
+                                     shared_verifier, step_response, structure_correlation)
 from tests.stabilizer.walking_frames import walking_frames
 
 METHODS = available_methods()
