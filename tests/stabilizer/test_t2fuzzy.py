@@ -178,6 +178,44 @@ def test_signs_of_the_paper_stages_on_a_common_disc(truth):
     assert error[0] <= 1.0 and error[1] <= 0.5 and error[2] <= 0.5
 
 
+@pytest.mark.parametrize("passes, extra, steps, agree_from, fail_at, expected", [
+    (3, 0, [10.0, 20.0, 30.0, 40.0], None, None, [1, 2, 3]),  # every pass, no more
+    (5, 0, [10.0, 20.0, 20.0 + 1e-3, 50.0], None, None, [1, 2, 3]),  # the angle settled
+    (4, 0, [10.0, 20.0, 30.0, 40.0], None, 2, [1, 2]),  # a failed pass ends them
+    (1, 2, [10.0, 20.0, 30.0, 40.0], None, None, [1, 2, 3]),  # extra passes: angles disagree
+    (1, 2, [10.0, 20.0, 30.0, 40.0], 2, None, [1, 2]),  # until the two rotations agree
+    (2, 2, [10.0, 20.0, 30.0, 40.0], 1, None, [1, 2]),  # the asked passes whatever they say
+])
+def test_common_disc_passes_run_as_many_times_as_asked_and_stop_early(
+        monkeypatch, passes, extra, steps, agree_from, fail_at, expected):
+    """``common_disc_passes`` passes run in turn, each from the last estimate, until the angle
+    changes by less than the threshold's resolution or a pass fails (its predecessor is kept);
+    then up to ``extra_disc_passes`` more while the searched rotation and the thresholds'
+    disagree by more than ``extra_pass_trigger_deg``. Each pass here returns the next angle of
+    ``steps``, its thresholds' rotation 100 degrees away, or (from the pass ``agree_from`` on)
+    the same."""
+    calls = []
+
+    def fake_pass(self, motion, reference, frame, current, image, diagnostics):
+        calls.append(diagnostics["refine_passes"])
+        if len(calls) == fail_at:
+            return Motion.failed(NO_TRANSLATION, **diagnostics)
+        angle = steps[len(calls) - 1]
+        agree = agree_from is not None and len(calls) >= agree_from
+        return Motion(angle, 0.0, 0.0, diagnostics=dict(
+            diagnostics, rotation_by_thresholds=angle if agree else angle + 100.0))
+
+    monkeypatch.setattr(T2FuzzyEstimator, "_common_disc_pass", fake_pass)
+    reference = _scene(3)
+    estimator = T2FuzzyEstimator(reference, refinements=Refinements(
+        common_disc_passes=passes, extra_disc_passes=extra))
+    estimate = estimator.estimate(apply_motion(reference, Motion(2.0, 6.0, -4.0)))
+    assert calls == expected
+    kept = len(calls) - 1 if fail_at == len(calls) else len(calls)
+    assert estimate.ok and estimate.angle_deg == steps[kept - 1]
+    assert estimate.diagnostics["refine_passes"] == kept
+
+
 def test_compensation_lines_the_frame_up_with_the_reference():
     reference = _scene(7)
     current = apply_motion(reference, Motion(8.0, 12.0, -9.0))

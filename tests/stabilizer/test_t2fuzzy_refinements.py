@@ -55,6 +55,20 @@ def test_the_common_disc_is_centred_half_way_along_the_shift_and_as_large_as_bot
         assert cols.mean() == pytest.approx(centre_x, abs=0.1)
         assert rows.mean() == pytest.approx(71.5, abs=0.1)
         assert rows.size == pytest.approx(math.pi * 36.5 ** 2, rel=0.03)
+        # It reaches the pixels one in from the side, and no farther.
+        assert (cols.min(), cols.max()) == (centre_x - 36.5, centre_x + 36.5)
+
+
+@pytest.mark.parametrize("row, col", [(20, 30), (21, 31), (21, 30)])
+def test_a_half_resolution_pixel_is_unmeasured_when_its_kernel_sees_an_unmeasured_one(row, col):
+    """cv2.pyrDown's 5 x 5 kernel reaches 2 full-resolution pixels either side of pixel
+    (2i, 2j): exactly the half-resolution pixels within that reach of one unmeasured pixel are
+    unmeasured, also those that see it with the kernel's least weight (1/256, at a corner)."""
+    valid = np.ones((144, 176), bool)
+    valid[row, col] = False
+    rows, cols = np.indices((72, 88))
+    expected = (np.abs(2 * rows - row) <= 2) & (np.abs(2 * cols - col) <= 2)
+    np.testing.assert_array_equal(~half_resolution_valid(valid), expected)
 
 
 def test_translation_guess_finds_the_shift_at_half_resolution():
@@ -326,25 +340,33 @@ def test_a_disagreement_is_resolved_on_the_whole_overlap():
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
 
 
-def test_two_peaks_that_correlate_alike_stay_a_disagreement():
+@pytest.mark.parametrize("limit_px, meet", [(5.0, False), (40.0, False), (60.0, True)])
+def test_two_peaks_that_correlate_alike_stay_a_disagreement(limit_px, meet):
     """Stripes 24 px apart: shifts one period apart correlate alike on the whole overlap, so
-    the two climbs end apart with no clear lead, and the disagreement is not resolved."""
+    the two climbs end apart with no clear lead, and the disagreement is not resolved, unless
+    the climbs end within half of ``max_shift_disagreement_px`` of each other (here 30 px):
+    then they found one peak, and the higher of the two is taken."""
     reference = np.full((144, 176), 40, np.uint8)
     for left in range(0, 176, 24):
         reference[:, left:left + 12] = 160
     reference[100:] += 30  # a horizon fixes y
     smoothed = _smoothed(reference)
     search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
-                            Refinements(), WideSearch(smoothed, reference > 0, 72, 0.3))
+                            Refinements(max_shift_disagreement_px=limit_px),
+                            WideSearch(smoothed, reference > 0, 72, 0.3))
     current = apply_motion(reference, Motion(0.0, 5.0, 3.0))
     image, valid = _smoothed(current), current > 0
     search(np.array([0.0]), 0.0, image, valid=valid)
     search.wide_angle, search.wide_shift = 0.0, (5.0 + 24.0, 3.0)
     estimate = TemplateMatch(5.0, 3.0, 0.9, False, 0.9)
-    assert search.resolve_disagreement(0.0, estimate, image, current) is None
-    # With no margin asked for, the higher of the two is taken.
-    search.resolve_margin = 0.0
-    assert search.resolve_disagreement(0.0, estimate, image, current) is not None
+    resolved = search.resolve_disagreement(0.0, estimate, image, current)
+    if meet:
+        assert resolved is not None and abs(resolved[1].x - 5.0) < 0.5
+    else:
+        assert resolved is None
+        # With no margin asked for, the higher of the two is taken.
+        search.resolve_margin = 0.0
+        assert search.resolve_disagreement(0.0, estimate, image, current) is not None
 
 
 def test_depth_edges_settle_two_climbs_whose_correlations_tie():
