@@ -178,6 +178,27 @@ def test_signs_of_the_paper_stages_on_a_common_disc(truth):
     assert error[0] <= 1.0 and error[1] <= 0.5 and error[2] <= 0.5
 
 
+def test_a_common_disc_pass_fits_an_uncut_object_as_the_whole_frame_does():
+    """An object inside the common disc, with a hole of unmeasured pixels in it, gets the same
+    ellipses from a pass on the disc as from the whole frame: the pass too leaves out the
+    detail points at the unmeasured pixels (the hole's edge is the measurement's, not the
+    scene's)."""
+    reference = _simple_scene()
+    current = apply_motion(reference, Motion(2.0, 3.0, -2.0))
+    current[60:75, 70:78] = 0
+    rows, cols = np.nonzero(current == 150)  # the ellipse, well inside the disc
+    disc, whole = (stabilizer.estimate(reference, current, verification=None,
+                                       refinements=Refinements(rotation_search=False,
+                                                               common_disc_passes=passes))
+                   for passes in (1, 0))
+    assert disc.diagnostics["refine_passes"] == 1 and whole.diagnostics["refine_passes"] == 0
+    fits = [fit for fit in whole.diagnostics["ellipses"]
+            if math.hypot(fit[0] - cols.mean(), fit[1] - rows.mean()) < 3.0]
+    assert len(fits) == 3  # its approximation and detail subbands
+    for fit in fits:
+        assert any(np.allclose(fit, other) for other in disc.diagnostics["ellipses"])
+
+
 @pytest.mark.parametrize("passes, extra, steps, agree_from, fail_at, expected", [
     (3, 0, [10.0, 20.0, 30.0, 40.0], None, None, [1, 2, 3]),  # every pass, no more
     (5, 0, [10.0, 20.0, 20.0 + 1e-3, 50.0], None, None, [1, 2, 3]),  # the angle settled
