@@ -92,6 +92,18 @@ def test_a_set_of_min_points_is_fitted_and_one_fewer_is_not():
                                 fit.half_minor[0]], [30.0, 20.0, 10.0, 4.0], atol=1e-9)
 
 
+@pytest.mark.parametrize("slope", [0.0, 0.5, None])  # a row of pixels, a slanted line, a column
+def test_points_on_a_straight_line_have_no_ellipse(slope):
+    """A straight edge seen alone (one side of a box) fixes no conic: its points leave the
+    fit's scatter singular, and the set is invalid, not an ellipse of arbitrary size."""
+    t = np.arange(40.0)
+    x, y = (np.full(40, 60.0), 10.0 + t) if slope is None else (10.0 + t, 50.0 + slope * t)
+    fit = fit_ellipses(np.r_[x, x + 100.0], np.r_[y, y], np.r_[np.zeros(40, int),
+                                                             np.ones(40, int)], 2)
+    assert not fit.valid.any() and not fit.oriented.any()
+    assert np.isnan(fit.angle_deg).all()
+
+
 def test_a_point_of_weight_zero_counts_for_nothing_and_a_ratio_of_one_orients_every_fit():
     # Weights may be 0 (a point left out) and min_axis_ratio 1 (no fit is too round).
     rng = np.random.default_rng(8)

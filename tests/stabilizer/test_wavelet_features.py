@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 import pywt
 
-from stabilizer.wavelet_features import (WaveletFeatures, _block_centre, haar_detail_energy,
-                                        haar_sums)
+from stabilizer.wavelet_features import (
+    MAX_EDGE_MARGIN,
+    MAX_LEVEL,
+    WaveletFeatures,
+    _block_centre,
+    haar_detail_energy,
+    haar_sums,
+)
 
 
 def _square_labels():
@@ -166,10 +172,18 @@ def test_significance_drops_weak_coefficients():
 @pytest.mark.parametrize("kwargs", [{"wavelet": "nope"}, {"level": 0}, {"significance": 1.0},
                                     {"edge_margin": -1},
                                     # Unbounded, these ran for minutes or asked for terabytes.
-                                    {"level": 10**6}, {"edge_margin": 10**6}])
+                                    {"level": 10**6}, {"edge_margin": 10**6},
+                                    {"level": MAX_LEVEL + 1}, {"edge_margin": MAX_EDGE_MARGIN + 1}])
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         WaveletFeatures(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"level": 1}, {"level": MAX_LEVEL}, {"edge_margin": 0},
+                                    {"edge_margin": MAX_EDGE_MARGIN}])
+def test_parameters_at_their_limits_are_accepted(kwargs):
+    features = WaveletFeatures(**kwargs)
+    assert all(getattr(features, name) == value for name, value in kwargs.items())
 
 
 @pytest.mark.parametrize("name", ["haar", "db2", "db3"])
