@@ -94,8 +94,8 @@ def test_a_set_of_min_points_is_fitted_and_one_fewer_is_not():
 
 @pytest.mark.parametrize("slope", [0.0, 0.5, None])  # a row of pixels, a slanted line, a column
 def test_points_on_a_straight_line_have_no_ellipse(slope):
-    """A straight edge seen alone (one side of a box) fixes no conic: its points leave the
-    fit's scatter singular, and the set is invalid, not an ellipse of arbitrary size."""
+    """A straight edge seen alone (one side of a box) fixes no ellipse: the set is invalid
+    and carries no angle, rather than an ellipse of arbitrary size."""
     t = np.arange(40.0)
     x, y = (np.full(40, 60.0), 10.0 + t) if slope is None else (10.0 + t, 50.0 + slope * t)
     fit = fit_ellipses(np.r_[x, x + 100.0], np.r_[y, y], np.r_[np.zeros(40, int),

@@ -173,7 +173,8 @@ def test_significance_drops_weak_coefficients():
                                     {"edge_margin": -1},
                                     # Unbounded, these ran for minutes or asked for terabytes.
                                     {"level": 10**6}, {"edge_margin": 10**6},
-                                    {"level": MAX_LEVEL + 1}, {"edge_margin": MAX_EDGE_MARGIN + 1}])
+                                    {"level": MAX_LEVEL + 1},
+                                    {"edge_margin": MAX_EDGE_MARGIN + 1}])
 def test_bad_parameters_raise(kwargs):
     with pytest.raises(ValueError):
         WaveletFeatures(**kwargs)
