@@ -41,8 +41,9 @@ Statuses (``Motion.status``) besides ``"ok"``:
         the frames).
 
 Diagnostics: ``rotation_response``, ``translation_response`` (peak strengths in [0, 1]),
-``overlap_correlation`` (of the winner), ``scale`` (estimated and ignored), ``half_turn``
-(whether the a + 180 candidate won).
+``overlap_correlation`` (of the winner), ``scale`` (the current frame's zoom against the
+reference, 1 for a rigid motion: estimated and ignored), ``half_turn`` (whether the a + 180
+candidate won).
 """
 
 from __future__ import annotations
@@ -169,7 +170,8 @@ class FourierMellinEstimator:
             self._reference_log_polar, self._log_polar_spectrum(current_float))
         # warpPolar's angle grows clockwise as displayed (y down); Motion's is counter-clockwise.
         angle = -angle_shift * 360.0 / self.angle_bins
-        scale = math.exp(log_radius_shift * math.log(self._side / 2.0) / self.radius_bins)
+        # A frame zoomed by s has its spectrum shrunk by s: the log-radius shift is -log s.
+        scale = math.exp(-log_radius_shift * math.log(self._side / 2.0) / self.radius_bins)
         candidates = []
         for turn in (0.0, 180.0):
             candidate_angle = float(np.mod(angle + turn + 180.0, 360.0) - 180.0)

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from stabilizer import Motion, Stabilizer, apply_motion, depth_to_disparity, estimate
-from stabilizer.motion import transform_points, wrap_angle_deg
+from stabilizer.motion import image_centre, transform_points, wrap_angle_deg
 from stabilizer.peers.preparation import (FramePreparation, clipped, robust_value_range,
                                           valid_interior)
 from stabilizer.peers.ecc import EccEstimator
@@ -279,6 +279,18 @@ def test_diagnostics_are_reported(method):
     reference = _disparity(4)
     result = ESTIMATORS[method](reference).estimate(apply_motion(reference, Motion(3, 5, 5)))
     assert result.ok and result.diagnostics
+
+
+@pytest.mark.parametrize("zoom", [0.9, 1.0, 1.1])
+def test_fourier_mellin_reports_the_zoom_it_ignores(zoom):
+    """The log-radius shift of the spectra is the current frame's zoom against the reference
+    (a frame zoomed in has its spectrum shrunk); the rotation is found whatever the zoom."""
+    reference = _disparity(3)
+    matrix = cv2.getRotationMatrix2D(image_centre(reference.shape), 3.0, zoom)
+    current = cv2.warpAffine(reference, matrix, reference.shape[::-1], flags=cv2.INTER_NEAREST)
+    result = FourierMellinEstimator(reference).estimate(current)
+    assert result.diagnostics["scale"] == pytest.approx(zoom, abs=0.02)
+    assert result.angle_deg == pytest.approx(3.0, abs=0.2)
 
 
 @pytest.mark.parametrize("method, params", [
