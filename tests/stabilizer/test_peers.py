@@ -417,6 +417,19 @@ def test_icp_aligns_a_frame_with_itself_from_a_start_off_zero(side, start_deg):
         _assert_icp_still(result, f"scene {seed}")
 
 
+@pytest.mark.parametrize("max_iterations", [1, 3])
+def test_icp_stops_after_max_iterations_unconverged(max_iterations):
+    """A motion ICP needs five steps to settle on: capped below that, the run makes exactly
+    ``max_iterations`` steps and says it did not converge; uncapped, it converges."""
+    reference = _disparity(4)
+    current = apply_motion(reference, Motion(6.0, 10.0, -7.0))
+    capped = IcpEstimator(reference, max_iterations=max_iterations).estimate(current)
+    settled = IcpEstimator(reference).estimate(current)
+    assert capped.diagnostics["iterations"] == max_iterations
+    assert not capped.diagnostics["converged"] and settled.diagnostics["converged"]
+    assert max_iterations < settled.diagnostics["iterations"] <= 10
+
+
 def test_icp_gives_no_motion_on_identical_frames_of_64_to_240_px():
     """Identical frames through the default start search: "ok" with no motion, on 64 x 64
     frames and on sizes up to 240 px, scenes of 2 to 6 objects with or without a floor (the
