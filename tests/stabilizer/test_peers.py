@@ -126,10 +126,12 @@ def test_recovers_random_motions_in_noisy_frames(method):
 @pytest.mark.parametrize("truth", [Motion(5.0, 0.0, 0.0), Motion(0.0, 10.0, -7.0)],
                          ids=["ccw_5deg", "shift_10_-7"])
 def test_signs_follow_the_motion_convention(method, truth):
-    """Through the public API: +5 deg is counter-clockwise, +x right, -y up (docs/design.md)."""
+    """Through the public API: +5 deg is counter-clockwise, +x right, -y up, the angle in
+    (-180, 180] (docs/design.md)."""
     reference = _disparity(3, n_objects=6)
     result = estimate(reference, apply_motion(reference, truth), method=method)
     assert result.ok, result.status
+    assert -180.0 < result.angle_deg <= 180.0
     angle_error, shift_error = _errors(result, truth)
     assert angle_error <= SIGN_TOLERANCE[0] and shift_error <= SIGN_TOLERANCE[1], result
     if truth.angle_deg:
