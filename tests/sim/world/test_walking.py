@@ -299,6 +299,21 @@ def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
     assert crouched.check(data).reason == "torso_low"
 
 
+@pytest.mark.parametrize("lifted, contacts", [("l", (False, True)), ("r", (True, False))])
+def test_foot_contacts_name_the_foot_on_the_floor(lifted, contacts):
+    """Standing, then one leg bent at hip and knee so that its foot leaves the floor: the
+    contacts are the other foot's alone (a walk's alternating contacts pass mirrored too)."""
+    sim = RobotSimulation(compile_world(assemble()))
+    model, data = sim.model, mujoco.MjData(sim.model)
+    data.qpos[:] = sim.data.qpos
+    mujoco.mj_forward(model, data)
+    assert FallDetector(model).foot_contacts(data) == (True, True)
+    for joint, bend in (("hip_pitch", -0.4), ("knee", 0.8)):
+        data.qpos[model.jnt_qposadr[model.joint(f"{MODEL_NAME}/{lifted}_{joint}").id]] += bend
+    mujoco.mj_forward(model, data)
+    assert FallDetector(model).foot_contacts(data) == contacts
+
+
 def floor_walk(gait, slope_direction_deg, seed, seconds):
     """Walk straight at 0.1 m/s on the corridor scene's roughest floor (3 degrees, 5 mm bumps;
     benchmarks/floor_walks.py)."""
