@@ -28,8 +28,14 @@ import pytest
 
 from stabilizer import Motion, Stabilizer, apply_motion, depth_to_disparity, estimate
 from stabilizer.motion import image_centre, transform_points, wrap_angle_deg
-from stabilizer.peers.preparation import (FramePreparation, clipped, robust_value_range,
-                                          valid_interior)
+from stabilizer.peers.preparation import (
+    MIN_VALID_PIXELS,
+    FramePreparation,
+    clipped,
+    frame_problem,
+    robust_value_range,
+    valid_interior,
+)
 from stabilizer.peers.ecc import EccEstimator
 from stabilizer.peers.fourier_mellin import FourierMellinEstimator
 from stabilizer.peers.icp import IcpEstimator, edge_normals
@@ -350,6 +356,14 @@ def test_phase_wrapped_columns_do_not_break_registration(method):
     assert accurate >= WRAPPED_COLUMNS_ACCURATE[method]
 
 
+def test_a_frame_of_min_valid_pixels_shows_a_scene_and_one_fewer_does_not():
+    image = np.zeros(SR4000_SHAPE, np.uint8)
+    image.flat[:MIN_VALID_PIXELS] = np.arange(MIN_VALID_PIXELS) % 200 + 20
+    assert frame_problem(image, "current") is None
+    image.flat[MIN_VALID_PIXELS - 1] = 0
+    assert frame_problem(image, "current") == "empty_current"
+
+
 def test_the_valid_interior_keeps_the_pixels_a_margin_away_from_an_invalid_one():
     image = np.full(SR4000_SHAPE, 90, np.uint8)
     assert (valid_interior(image, 3) == 255).all()  # the image border is no invalid pixel
@@ -368,7 +382,9 @@ def test_robust_value_range_ignores_a_bright_minority_and_keeps_a_noise_floor():
     assert (low, high) == (34.0, 46.0)  # median 40 -+ 2 x the floor 3 (no spread, no noise)
     noisy = (40 + np.random.default_rng(0).normal(0, 4, (40, 50))).astype(np.uint8)
     low, high = robust_value_range(noisy, 2.0, noise_factor=5.0)
-    assert high - low > 2 * 2 * 5 * 3  # the noise (~4) times 5 sets the spread
+    # The noise, from the differences of neighbours (sqrt 2 times the pixels'), is about 4;
+    # five times it sets the spread, above the values' own (about 4 as well).
+    assert (high - low) / (2 * 2 * 5) == pytest.approx(4.0, rel=0.1)
     assert robust_value_range(np.zeros((5, 5), np.uint8), 2.0) is None
 
 
