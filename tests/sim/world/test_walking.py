@@ -314,6 +314,32 @@ def test_foot_contacts_name_the_foot_on_the_floor(lifted, contacts):
     assert FallDetector(model).foot_contacts(data) == contacts
 
 
+def test_floor_estimate_of_a_floor_rising_sideways_and_its_limits():
+    """A floor rising towards +y (the sole turned about x): the estimate's y gradient, a
+    steeper median within the tolerance of it changes nothing, the plane's height grows along
+    y, and a foothold is ignored from just beyond ``max_slope_deg`` on."""
+    from sim.world.walking.floor_estimate import FloorEstimate
+
+    floor = FloorEstimate(0.01, footholds=3, tilt_tolerance_deg=1.0, max_slope_deg=6.0)
+    for _ in range(2):
+        floor.measure(rot_x(math.radians(3.0)))
+    assert floor.estimate == pytest.approx((0.0, math.tan(math.radians(3.0))))
+    for _ in range(3):
+        floor.measure(rot_x(math.radians(3.5)))  # 0.5 deg steeper: within the tolerance
+    assert floor.estimate == pytest.approx((0.0, math.tan(math.radians(3.0))))
+    for _ in range(300):
+        floor.advance()
+    assert floor.height(2.0, 1.5, 2.0, 0.5) == pytest.approx(math.tan(math.radians(3.0)))
+    for tilt_deg, kept in ((5.99, True), (6.01, False)):
+        edge = FloorEstimate(0.01, footholds=1, tilt_tolerance_deg=0.0, max_slope_deg=6.0)
+        edge.measure(rot_x(math.radians(tilt_deg)))
+        assert (edge.estimate != (0.0, 0.0)) == kept
+    for bad in ({"footholds": 0}, {"tilt_tolerance_deg": -0.1}, {"time_constant_s": 0.0},
+                {"max_slope_deg": 90.0}):
+        with pytest.raises(ValueError, match="FloorEstimate"):
+            FloorEstimate(0.01, **bad)
+
+
 def floor_walk(gait, slope_direction_deg, seed, seconds):
     """Walk straight at 0.1 m/s on the corridor scene's roughest floor (3 degrees, 5 mm bumps;
     benchmarks/floor_walks.py)."""
