@@ -328,6 +328,43 @@ def test_a_footstep_moves_at_most_its_limits_and_never_across_the_support_foot(m
     assert moved(0.0, -outward * 1.0) == pytest.approx((0.0, -outward * (width - 0.08)))
 
 
+@pytest.mark.parametrize("gain, single_support", [(1.0, True), (0.5, True), (1.0, False)])
+def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
+        model, gain, single_support):
+    """Steady steps teach the stepper their capture point's pattern (here none: the error
+    stays 0); then the capture point departs from it by 7 cm (more than ``trigger_m``): the
+    disturbance is noted, with whether it came in single support, and from the next control
+    period of single support the swing foot's target moves by ``gain`` times the departure
+    (growth rate 0, within the limits)."""
+    period = 1.0 / 64.0  # exact in binary: every step's times fall in the same bins
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.25, 0.09, 0.03, 0.0)
+    planner.set_command(0.04, 0.0, 0.0)
+    stepper = CapturePointStepper(model, 0.3, period, 1.5, gain=gain)
+    departure = np.zeros(2)
+    stepper.capture_point_from_support = lambda data, planner: departure
+    moves = []
+    adjust = planner.adjust_current_step
+    planner.adjust_current_step = lambda offset, now_s: (moves.append((now_s, offset)),
+                                                         adjust(offset, now_s))
+    pushed_at = None
+    for tick in range(int(5.0 / period)):
+        now = tick * period
+        planner.update(now, 3.0)
+        step = planner.current_step
+        into_step = step.double_support_s + 2 * period if single_support else period
+        if pushed_at is None and now >= 3.6 and now == step.start_s + into_step:
+            pushed_at = now
+            departure = np.array([-0.03, 0.06 * SIDE_SIGN[step.swing_side]])  # outward
+        stepper.update(now, None, planner)
+    assert pushed_at is not None and stepper.disturbed_at_s == pushed_at
+    assert stepper.disturbed_in_single_support == single_support
+    np.testing.assert_array_equal(stepper.disturbance_m, departure)
+    if single_support:
+        assert stepper.adjusted_steps == 1
+        assert len(moves) == 1 and moves[0][0] == pushed_at + period
+        np.testing.assert_allclose(moves[0][1], gain * departure, atol=1e-12)
+
+
 def test_planner_moves_the_step_under_way_and_returns_to_the_path():
     planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0, path_return_m=0.02)
     planner.set_command(0.05, 0.0, 0.0)
