@@ -252,6 +252,12 @@ def test_leg_ik_matches_mujoco_forward_kinematics(model):
             assert foot.xmat.reshape(3, 3) == pytest.approx(foot_rot, abs=1e-9)
 
 
+@pytest.mark.parametrize("thigh_m, shank_m", [(0.0, 0.15), (0.15, 0.0), (-0.1, 0.15)])
+def test_leg_ik_needs_segments_of_positive_length(thigh_m, shank_m):
+    with pytest.raises(ValueError, match="leg segment lengths must be > 0"):
+        LegIK(thigh_m, shank_m)
+
+
 def test_preview_control_tracks_a_zmp_staircase():
     controller = ZmpPreviewController(com_height_m=0.33, dt_s=0.01)
     controller.reset([0.0, 0.0])
