@@ -249,7 +249,7 @@ def test_counterbalance_rolls_the_waist_into_the_push_and_the_swing_leg_away_fro
     assert move.offsets(1.65) == pytest.approx((-0.15, 0.0))
     assert not move.finished(1.79) and move.finished(1.8)
     mirrored = Counterbalance(support_side=1, start_s=1.0, touchdown_s=1.3)
-    assert mirrored.offsets(1.1) == pytest.approx((0.3, 0.4))
+    assert mirrored.swing_side == 0 and mirrored.offsets(1.1) == pytest.approx((0.3, 0.4))
 
 
 @pytest.mark.parametrize("gait", ["default", "paper_like"])
