@@ -335,7 +335,7 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
     stays 0); then the capture point departs from it by 7 cm (more than ``trigger_m``): the
     disturbance is noted, with whether it came in single support, and from the next control
     period of single support the swing foot's target moves by ``gain`` times the departure
-    (growth rate 0, within the limits)."""
+    (growth rate 0, within the limits); ``recovery_steps`` (2) steps of recovery follow."""
     period = 1.0 / 64.0  # exact in binary: every step's times fall in the same bins
     planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.25, 0.09, 0.03, 0.0)
     planner.set_command(0.04, 0.0, 0.0)
@@ -353,7 +353,7 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
         step = planner.current_step
         into_step = step.double_support_s + 2 * period if single_support else period
         if pushed_at is None and now >= 3.6 and now == step.start_s + into_step:
-            pushed_at = now
+            pushed_at, pushed_step_end = now, step.end_s
             departure = np.array([-0.03, 0.06 * SIDE_SIGN[step.swing_side]])  # outward
         stepper.update(now, None, planner)
     assert pushed_at is not None and stepper.disturbed_at_s == pushed_at
@@ -363,6 +363,9 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
         assert stepper.adjusted_steps == 1
         assert len(moves) == 1 and moves[0][0] == pushed_at + period
         np.testing.assert_allclose(moves[0][1], gain * departure, atol=1e-12)
+        # The two steps after the adjusted one are a recovery: nothing learnt or adjusted.
+        recovered_at = pushed_step_end + 2 * planner.step_period_s
+        assert stepper.recovering(recovered_at - period) and not stepper.recovering(recovered_at)
 
 
 def test_planner_moves_the_step_under_way_and_returns_to_the_path():
