@@ -453,6 +453,24 @@ def test_an_estimate_beyond_float32s_range_has_its_length_as_end_point_error(off
     assert rms == pytest.approx(abs(offset), rel=1e-9)
 
 
+@pytest.mark.parametrize("offset", [(3.0, -4.0), (0.0, 0.0), (-0.2, 0.1)])
+def test_the_float64_fallback_agrees_with_the_float32_end_point_error(offset):
+    # The fallback for misses that overflow float32 is exact for ordinary ones too.
+    truth = ground_truth(*_frames(roll_deg=3.0, yaw_deg=2.0))
+    motion = Motion(truth.motion.angle_deg + 0.5, truth.motion.dx + offset[0],
+                    truth.motion.dy + offset[1])
+    points = truth.correspondences
+    np.testing.assert_allclose(points._wide_end_point_error(motion),
+                               points.end_point_error(motion), rtol=1e-6)
+
+
+def test_a_motion_that_sends_every_point_home_has_no_end_point_error_in_either_path():
+    truth = ground_truth(*_frames(roll_deg=3.0))
+    home = dataclasses.replace(truth.correspondences, target_px=truth.correspondences.source_px)
+    still = Motion(0.0, 0.0, 0.0)
+    assert home.end_point_error(still) == home._wide_end_point_error(still) == (0.0, 0.0)
+
+
 def test_end_point_error_is_nan_for_a_failed_estimate_or_truth():
     truth = ground_truth(*_frames(roll_deg=3.0))
     assert all(math.isnan(v) for v in truth.end_point_error(Motion.failed("no_structure")))
