@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import shutil
 import signal
@@ -48,6 +49,11 @@ def test_paper_cycle_has_the_papers_magnitudes():
 
     # The camera bobs once per step, twice per cycle; it turns and sways once per cycle.
     assert (peaks(angle), peaks(dx), peaks(dy)) == (1, 1, 2)
+    # The phases of the module docstring's formulas: x leads the rotation by pi / 3, y is
+    # lowest at the cycle's start.
+    np.testing.assert_allclose(motions[[0, 15]], [[0.0, 40.0 * math.sin(math.pi / 3), 2.0],
+                                                  [12.0, 40.0 * math.cos(math.pi / 3), 32.0]],
+                               atol=1e-12)
 
 
 def test_unknown_trajectory_is_a_clear_error(tmp_path):
@@ -95,7 +101,10 @@ def test_paper_method_is_accurate_in_the_ideal_case(tmp_path):
     assert score["errors"]["rotation"]["mean"] < 0.5
     assert score["errors"]["x"]["mean"] < 0.5 and score["errors"]["y"]["mean"] < 0.5
     with open(tmp_path / "out" / "frames.csv", newline="") as handle:
-        assert sum(1 for _ in csv.DictReader(handle)) == 30
+        rows = list(csv.DictReader(handle))
+    assert [int(row["frame_index"]) for row in rows] == list(range(30))
+    # The frames lie on the time axis of a 30-fps camera.
+    assert [float(row["time_s"]) for row in rows] == pytest.approx(np.arange(30) / 30.0)
 
 
 def test_frames_csv_without_truth_is_rejected(tmp_path):
