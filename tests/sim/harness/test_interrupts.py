@@ -24,6 +24,16 @@ from sim.harness.interrupts import (Interrupted, children_start_deaf_to_ctrl_c,
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 
 
+@pytest.fixture(autouse=True)
+def hangups_not_ignored():
+    """SIGHUP at its default for each test and the jobs it starts: under nohup the tests
+    inherit it ignored, and a job keeps an ignored SIGHUP ignored (as it should), so the
+    tests of SIGHUP ending a job would see nothing."""
+    previous = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    yield
+    signal.signal(signal.SIGHUP, previous)
+
+
 def test_a_stop_signal_raises_interrupted_inside_the_block_only():
     previous = signal.getsignal(signal.SIGTERM)
     with stop_signals_interrupt():
