@@ -443,6 +443,14 @@ def test_a_heightfield_is_drawn_where_mujoco_has_its_surface():
         distance = mujoco.mj_ray(model, data, np.array([vertex[0], vertex[1], 5.0]),
                                  np.array([0.0, 0.0, -1.0]), None, 1, -1, hit)
         assert abs(5.0 - distance - vertex[2]) < 1e-9
+    # The triangles tile the field's 3 m x 2 m once, each facing up (counter-clockwise seen
+    # from above), each within one cell of the grid.
+    a, b, c = (vertices[triangles[:, corner], :2] for corner in range(3))
+    areas = ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+             - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])) / 2.0
+    assert (areas > 0).all() and areas.sum() == pytest.approx(3.0 * 2.0, abs=1e-9)
+    rows, cols = np.divmod(triangles.astype(int), 4)
+    assert (np.ptp(rows, axis=1) == 1).all() and (np.ptp(cols, axis=1) == 1).all()
 
 
 def test_a_method_has_one_colour_in_every_recording():
