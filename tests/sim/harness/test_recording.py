@@ -449,7 +449,7 @@ def test_a_heightfield_is_drawn_where_mujoco_has_its_surface():
     areas = ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
              - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])) / 2.0
     assert (areas > 0).all() and areas.sum() == pytest.approx(3.0 * 2.0, abs=1e-9)
-    rows, cols = np.divmod(triangles.astype(int), 4)
+    rows, cols = np.divmod(triangles.astype(int), 4)  # the grid's 4 columns
     assert (np.ptp(rows, axis=1) == 1).all() and (np.ptp(cols, axis=1) == 1).all()
 
 

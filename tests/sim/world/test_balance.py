@@ -342,10 +342,13 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
     stepper = CapturePointStepper(model, 0.3, period, 1.5, gain=gain)
     departure = np.zeros(2)
     stepper.capture_point_from_support = lambda data, planner: departure
-    moves = []
-    adjust = planner.adjust_current_step
-    planner.adjust_current_step = lambda offset, now_s: (moves.append((now_s, offset)),
-                                                         adjust(offset, now_s))
+    moves, adjust = [], planner.adjust_current_step
+
+    def recorded_adjust(offset, now_s):
+        moves.append((now_s, offset))
+        adjust(offset, now_s)
+
+    planner.adjust_current_step = recorded_adjust
     pushed_at = None
     for tick in range(int(5.0 / period)):
         now = tick * period
