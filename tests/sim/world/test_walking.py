@@ -258,6 +258,13 @@ def test_leg_ik_needs_segments_of_positive_length(thigh_m, shank_m):
         LegIK(thigh_m, shank_m)
 
 
+@pytest.mark.parametrize("args", [(0.0, 0.01), (0.33, 0.0), (0.33, 0.01, 0.009)])
+def test_preview_control_needs_a_height_a_period_and_a_horizon_of_a_period(args):
+    with pytest.raises(ValueError, match="ZmpPreviewController needs"):
+        ZmpPreviewController(*args)
+    assert ZmpPreviewController(0.33, 0.01, 0.01).horizon == 1  # one period is enough
+
+
 def test_preview_control_tracks_a_zmp_staircase():
     controller = ZmpPreviewController(com_height_m=0.33, dt_s=0.01)
     controller.reset([0.0, 0.0])
