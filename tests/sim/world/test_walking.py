@@ -16,7 +16,7 @@ from sim.world.walking import (GAIT_PRESETS, FallEvent, GaitParams, RobotSimulat
                                camera_swing)
 from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
 from sim.world.walking.falls import FallDetector
-from sim.world.walking.footsteps import FootstepPlanner, Pose2D
+from sim.world.walking.footsteps import FootstepPlanner, Pose2D, _mid
 from sim.world.walking.gait import resolve_gait
 from sim.world.walking.leg_ik import LegIK, rot_x, rot_y, rot_z
 from sim.world.walking.preview import ZmpPreviewController
@@ -298,6 +298,17 @@ def test_planner_turns_in_place_and_stops_feet_side_by_side():
     assert left.yaw > math.radians(40.0)
     assert math.hypot(left.x - right.x, left.y - right.y) == pytest.approx(0.09)
     assert math.hypot((left.x + right.x) / 2, (left.y + right.y) / 2) < 1e-9
+
+
+@pytest.mark.parametrize("yaw_a_deg, yaw_b_deg, middle_deg", [
+    (10.0, 30.0, 20.0), (30.0, 10.0, 20.0), (170.0, -170.0, 180.0), (-170.0, 170.0, 180.0)])
+def test_the_middle_of_two_feet_faces_half_way_the_short_way_round(yaw_a_deg, yaw_b_deg,
+                                                                   middle_deg):
+    middle = _mid(Pose2D(0.0, 0.1, math.radians(yaw_a_deg)),
+                  Pose2D(0.2, -0.1, math.radians(yaw_b_deg)))
+    assert (middle.x, middle.y) == pytest.approx((0.1, 0.0))
+    turn = math.remainder(middle.yaw - math.radians(middle_deg), 2 * math.pi)
+    assert turn == pytest.approx(0.0, abs=1e-12)
 
 
 def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
