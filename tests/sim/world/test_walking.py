@@ -16,6 +16,7 @@ from sim.world.walking import (GAIT_PRESETS, FallEvent, GaitParams, RobotSimulat
                                camera_swing)
 from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
 from sim.world.walking.falls import FallDetector
+from sim.world.walking.floor_estimate import FloorEstimate
 from sim.world.walking.footsteps import FootstepPlanner, Pose2D, _mid
 from sim.world.walking.gait import resolve_gait
 from sim.world.walking.leg_ik import LegIK, rot_x, rot_y, rot_z
@@ -324,10 +325,10 @@ def test_a_robot_standing_lower_than_the_origin_has_not_fallen():
 
 
 @pytest.mark.parametrize("lifted, contacts", [("l", (False, True)), ("r", (True, False))])
-def test_foot_contacts_name_the_foot_on_the_floor(lifted, contacts):
+def test_foot_contacts_name_the_foot_on_the_floor(model, lifted, contacts):
     """Standing, then one leg bent at hip and knee so that its foot leaves the floor: the
     contacts are the other foot's alone (a walk's alternating contacts pass mirrored too)."""
-    sim = RobotSimulation(compile_world(assemble()))
+    sim = RobotSimulation(model)
     model, data = sim.model, mujoco.MjData(sim.model)
     data.qpos[:] = sim.data.qpos
     mujoco.mj_forward(model, data)
@@ -342,8 +343,6 @@ def test_floor_estimate_of_a_floor_rising_sideways_and_its_limits():
     """A floor rising towards +y (the sole turned about x): the estimate's y gradient, a
     steeper median within the tolerance of it changes nothing, the plane's height grows along
     y, and a foothold is ignored from just beyond ``max_slope_deg`` on."""
-    from sim.world.walking.floor_estimate import FloorEstimate
-
     floor = FloorEstimate(0.01, footholds=3, tilt_tolerance_deg=1.0, max_slope_deg=6.0)
     for _ in range(2):
         floor.measure(rot_x(math.radians(3.0)))
@@ -427,8 +426,6 @@ def test_on_a_level_floor_following_the_floor_changes_nothing(model, gait):
 
 
 def test_floor_estimate_takes_the_median_slope_and_ignores_feet_on_their_edge():
-    from sim.world.walking.floor_estimate import FloorEstimate
-
     floor = FloorEstimate(0.01, footholds=5, tilt_tolerance_deg=1.0, time_constant_s=0.2,
                           max_slope_deg=6.0)
     uphill = rot_y(-math.radians(3.0))           # a sole flat on a floor rising towards +x
