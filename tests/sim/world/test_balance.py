@@ -371,29 +371,40 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
         assert stepper.recovering(recovered_at - period) and not stepper.recovering(recovered_at)
 
 
-def test_planner_moves_the_step_under_way_and_returns_to_the_path():
+@pytest.mark.parametrize("offset", [(0.0, -0.04), (0.03, -0.04)])
+def test_planner_moves_the_step_under_way_and_returns_to_the_path(offset):
     planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0, path_return_m=0.02)
     planner.set_command(0.05, 0.0, 0.0)
     planner.update(0.0, 3.0)
     planner.update(1.0, 3.0)                    # second step (start 0.9 s), mid-swing
     step = planner.current_step
+    planned = [later.centre_after for later in planner.steps]
     now = 1.1
     before, _ = planner.feet_now(now)
-    planner.adjust_current_step((0.0, -0.04), now)
+    planner.adjust_current_step(offset, now)
     after, _ = planner.feet_now(now)
     moved = planner.current_step
-    assert moved.swing_to.y == pytest.approx(step.planned_swing_to.y - 0.04)
-    assert moved.swing_to.x == pytest.approx(step.planned_swing_to.x)
-    # No jump of the swing foot, and it lands on the new target.
+    assert moved.swing_to.x == pytest.approx(step.planned_swing_to.x + offset[0])
+    assert moved.swing_to.y == pytest.approx(step.planned_swing_to.y + offset[1])
+    # No jump of the swing foot, along either axis, and it lands on the new target.
     assert after[step.swing_side].x == pytest.approx(before[step.swing_side].x)
     assert after[step.swing_side].y == pytest.approx(before[step.swing_side].y)
     landed, _ = planner.feet_now(moved.end_s)
+    assert landed[step.swing_side].x == pytest.approx(moved.swing_to.x)
     assert landed[step.swing_side].y == pytest.approx(moved.swing_to.y)
-    # The next steps start from the moved foot and come back 2 cm per step.
+    # The next steps start from the moved foot and come back 2 cm per step, along the offset.
     planner.update(now, 3.0)
-    offsets = [s.centre_offset[1] for s in planner.steps]
-    assert offsets[:4] == pytest.approx([-0.04, -0.02, 0.0, 0.0])
-    assert planner.steps[1].zmp_on[1] == pytest.approx(moved.swing_to.y)
+    length = math.hypot(*offset)
+    for axis in (0, 1):
+        offsets = [s.centre_offset[axis] for s in planner.steps]
+        expected = [offset[axis] * max(length - 0.02 * n, 0.0) / length for n in range(4)]
+        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
+        # The walking centre is the planned one moved by that offset.
+        centres = [(later.centre_after.x, later.centre_after.y)[axis] for later in planner.steps]
+        assert centres[:4] == pytest.approx(
+            [(centre.x, centre.y)[axis] + shift for centre, shift in zip(planned, expected)],
+            abs=1e-12)
+    assert planner.steps[1].zmp_on == pytest.approx(moved.swing_to.xy)
     with pytest.raises(ValueError, match="landed"):
         planner.adjust_current_step((0.0, 0.01), moved.end_s)
 
@@ -416,8 +427,64 @@ def test_planner_translation_keeps_relative_poses_and_returns_to_the_path():
     # step.
     planner.update(now, 3.0)
     np.testing.assert_allclose(planner.zmp_reference(np.array([now])), zmp_before + (0.01, 0.05))
-    offsets = [s.centre_offset[1] for s in planner.steps]
-    assert offsets[:4] == pytest.approx([0.05, 0.03, 0.01, 0.0], abs=1e-3)
+    length = math.hypot(0.01, 0.05)
+    for axis, shift in enumerate((0.01, 0.05)):
+        offsets = [s.centre_offset[axis] for s in planner.steps]
+        expected = [shift * max(length - 0.02 * n, 0.0) / length for n in range(4)]
+        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
+
+
+def test_planner_translated_while_standing_walks_back_to_the_path_once_walking():
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0, path_return_m=0.02)
+    planner.update(0.0, 3.0)
+    assert planner.current_step is None and not planner.steps
+    planner.translate((0.01, 0.05))
+    feet, _ = planner.feet_now(0.0)
+    assert [value for foot in feet for value in (foot.x, foot.y)] == pytest.approx(
+        [0.01, 0.095, 0.01, 0.005])
+    planner.update(0.5, 3.0)                    # standing still stays where it was moved
+    assert not planner.steps
+    planner.set_command(0.05, 0.0, 0.5)
+    planner.update(0.5, 3.0)
+    length = math.hypot(0.01, 0.05)
+    for axis, shift in enumerate((0.01, 0.05)):
+        offsets = [s.centre_offset[axis] for s in planner.steps]
+        expected = [shift * max(length - 0.02 * n, 0.0) / length for n in range(1, 5)]
+        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
+    # Back on the commanded path (y = 0), 5 cm forward per step from where it stood.
+    back = planner.steps[3]
+    assert back.centre_after.y == pytest.approx(0.0, abs=1e-12)
+    assert back.centre_after.x == pytest.approx(4 * 0.05, abs=1e-12)
+
+
+def test_planner_zmp_reference_shifts_onto_each_support_and_settles_between_the_feet():
+    """Linear between the corners: from between the feet onto the support foot (moved out by
+    the lateral sway) in the double support, there through the single support, and back between
+    the feet in ``settle_s`` after the last step."""
+    planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.02,
+                              start_delay_s=0.4, settle_s=0.5)
+    planner.set_command(0.05, 0.0, 0.0)
+    planner.update(0.0, 3.0)
+    first = planner.steps[0]
+    assert (first.start_s, first.double_support_s, first.support_side) == (0.0, 0.4, RIGHT)
+    on_right = (0.0, -0.045 - 0.02)
+    np.testing.assert_allclose(planner.zmp_reference(np.array([0.0, 0.2, 0.4, 0.6, first.end_s])),
+                               [(0.0, 0.0), (0.0, on_right[1] / 2), on_right, on_right, on_right],
+                               atol=1e-12)
+    # A step is over at its end: the next one is under way.
+    planner.update(first.end_s, 3.0)
+    assert planner.current_step.start_s == first.end_s and planner.current_step is not first
+    # Told to stop: the steps that close the feet side by side, then the settling.
+    planner.set_command(0.0, 0.0, first.end_s)
+    planner.update(first.end_s, 3.0)
+    last = planner.steps[-1]
+    between = np.array([[last.feet_after[0].x, 0.0]])
+    np.testing.assert_allclose(planner.zmp_reference(np.array([last.end_s])), [last.zmp_on],
+                               atol=1e-12)
+    np.testing.assert_allclose(planner.zmp_reference(np.array([last.end_s + 0.25])),
+                               (np.asarray(last.zmp_on) + between) / 2, atol=1e-12)
+    np.testing.assert_allclose(planner.zmp_reference(np.array([last.end_s + 0.5, last.end_s + 5])),
+                               np.repeat(between, 2, axis=0), atol=1e-12)
 
 
 def test_the_largest_survived_impulse_is_bisected_to_the_resolution(monkeypatch):
