@@ -1,11 +1,13 @@
 """Input conversion and checks (stabilizer.inputs): metric depth to the 8-bit disparity-like
 image of docs/method.md, section 0."""
 
+import re
+
 import numpy as np
 import pytest
 
-from stabilizer.inputs import (DEFAULT_FAR_M, DEFAULT_NEAR_M, check_integer, check_size,
-                               depth_to_disparity)
+from stabilizer.inputs import (DEFAULT_FAR_M, DEFAULT_NEAR_M, check_integer, check_number,
+                               check_size, depth_to_disparity)
 
 
 def test_disparity_falls_as_one_over_depth_from_255_at_the_near_limit():
@@ -60,3 +62,29 @@ def test_integers_at_the_limits_are_accepted_and_one_beyond_is_refused():
     check_integer("n", 10**9, 3)
     with pytest.raises(ValueError, match="n must be an integer >= 3"):
         check_integer("n", 2, 3)
+
+
+@pytest.mark.parametrize("open_low, open_high, interval", [
+    (False, False, "[0, 1]"), (True, False, "(0, 1]"), (False, True, "[0, 1)"),
+    (True, True, "(0, 1)")])
+def test_numbers_at_each_end_are_accepted_unless_that_end_is_open(open_low, open_high,
+                                                                  interval):
+    refused = f"x must be a finite number in {re.escape(interval)}; got"
+    check_number("x", 0.5, 0.0, 1.0, open_low=open_low, open_high=open_high)
+    for end, is_open in ((0.0, open_low), (1.0, open_high)):
+        if is_open:
+            with pytest.raises(ValueError, match=refused):
+                check_number("x", end, 0.0, 1.0, open_low=open_low, open_high=open_high)
+        else:
+            check_number("x", end, 0.0, 1.0, open_low=open_low, open_high=open_high)
+    for value in (-1e-9, 1.0 + 1e-9, float("nan"), float("inf"), True, "0.5"):
+        with pytest.raises(ValueError, match=refused):
+            check_number("x", value, 0.0, 1.0, open_low=open_low, open_high=open_high)
+
+
+def test_an_unbounded_end_is_written_open():
+    with pytest.raises(ValueError, match=r"in \(-inf, 2\]"):
+        check_number("x", 3.0, high=2.0)
+    with pytest.raises(ValueError, match=r"in \[2, inf\)"):
+        check_number("x", 1.0, 2.0)
+    check_number("x", -1e300)
