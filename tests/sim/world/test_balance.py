@@ -371,6 +371,16 @@ def test_a_departure_of_the_capture_point_moves_the_swing_foot_by_gain_times_it(
         assert stepper.recovering(recovered_at - period) and not stepper.recovering(recovered_at)
 
 
+def expected_offsets(offset, path_return_m, shortened_first, n_steps=4):
+    """The walking centre's offsets from the path, (n_steps, 2), over the steps after a move
+    by ``offset``: shortened by ``path_return_m`` a step along it, from the first step on when
+    ``shortened_first`` (else from the second)."""
+    length = math.hypot(*offset)
+    start = 1 if shortened_first else 0
+    return [[value * max(length - path_return_m * n, 0.0) / length for value in offset]
+            for n in range(start, start + n_steps)]
+
+
 @pytest.mark.parametrize("offset", [(0.0, -0.04), (0.03, -0.04)])
 def test_planner_moves_the_step_under_way_and_returns_to_the_path(offset):
     planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0, path_return_m=0.02)
@@ -394,16 +404,13 @@ def test_planner_moves_the_step_under_way_and_returns_to_the_path(offset):
     assert landed[step.swing_side].y == pytest.approx(moved.swing_to.y)
     # The next steps start from the moved foot and come back 2 cm per step, along the offset.
     planner.update(now, 3.0)
-    length = math.hypot(*offset)
-    for axis in (0, 1):
-        offsets = [s.centre_offset[axis] for s in planner.steps]
-        expected = [offset[axis] * max(length - 0.02 * n, 0.0) / length for n in range(4)]
-        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
-        # The walking centre is the planned one moved by that offset.
-        centres = [(later.centre_after.x, later.centre_after.y)[axis] for later in planner.steps]
-        assert centres[:4] == pytest.approx(
-            [(centre.x, centre.y)[axis] + shift for centre, shift in zip(planned, expected)],
-            abs=1e-12)
+    expected = expected_offsets(offset, 0.02, shortened_first=False)
+    np.testing.assert_allclose([s.centre_offset for s in list(planner.steps)[:4]], expected,
+                               atol=1e-12)
+    # The walking centre is the planned one moved by that offset.
+    np.testing.assert_allclose([s.centre_after.xy for s in list(planner.steps)[:4]],
+                               [centre.xy for centre in planned[:4]] + np.array(expected),
+                               atol=1e-12)
     assert planner.steps[1].zmp_on == pytest.approx(moved.swing_to.xy)
     with pytest.raises(ValueError, match="landed"):
         planner.adjust_current_step((0.0, 0.01), moved.end_s)
@@ -427,11 +434,9 @@ def test_planner_translation_keeps_relative_poses_and_returns_to_the_path():
     # step.
     planner.update(now, 3.0)
     np.testing.assert_allclose(planner.zmp_reference(np.array([now])), zmp_before + (0.01, 0.05))
-    length = math.hypot(0.01, 0.05)
-    for axis, shift in enumerate((0.01, 0.05)):
-        offsets = [s.centre_offset[axis] for s in planner.steps]
-        expected = [shift * max(length - 0.02 * n, 0.0) / length for n in range(4)]
-        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
+    np.testing.assert_allclose([s.centre_offset for s in list(planner.steps)[:4]],
+                               expected_offsets((0.01, 0.05), 0.02, shortened_first=False),
+                               atol=1e-12)
 
 
 def test_planner_translated_while_standing_walks_back_to_the_path_once_walking():
@@ -446,11 +451,9 @@ def test_planner_translated_while_standing_walks_back_to_the_path_once_walking()
     assert not planner.steps
     planner.set_command(0.05, 0.0, 0.5)
     planner.update(0.5, 3.0)
-    length = math.hypot(0.01, 0.05)
-    for axis, shift in enumerate((0.01, 0.05)):
-        offsets = [s.centre_offset[axis] for s in planner.steps]
-        expected = [shift * max(length - 0.02 * n, 0.0) / length for n in range(1, 5)]
-        assert offsets[:4] == pytest.approx(expected, abs=1e-12)
+    np.testing.assert_allclose([s.centre_offset for s in list(planner.steps)[:4]],
+                               expected_offsets((0.01, 0.05), 0.02, shortened_first=True),
+                               atol=1e-12)
     # Back on the commanded path (y = 0), 5 cm forward per step from where it stood.
     back = planner.steps[3]
     assert back.centre_after.y == pytest.approx(0.0, abs=1e-12)
