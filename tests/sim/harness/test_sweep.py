@@ -23,7 +23,7 @@ from sim.harness.scenario import SCENARIOS_DIR
 from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, RunOutcome,
                                SweepError, completed_metrics, expand_sweep, load_sweep,
-                               plan_sweep, run_sweep, sweep_from_dict)
+                               plan_sweep, run_sweep, sweep_from_dict, table_markdown)
 from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep.plan import planned_scenario
 
@@ -134,6 +134,20 @@ def test_integer_keys_are_swept_with_the_integers_written(tmp_path):
     # Named as before for a level a float holds; a larger integer is named exactly.
     assert [Path(config.out_dir).name for config in configs] == [
         "corridor_straight__seed0__noise2.0", "corridor_straight__seed0__noise9007199254740993"]
+
+
+def test_the_sweep_table_writes_noise_levels_as_given_rates_in_percent_and_errors_rounded():
+    errors = dict(zip(ERROR_COLUMNS.values(), (0.1234, 1.5, math.nan)))
+    row = {"run": "r0", "scenario": "corridor", "seed": 3, "noise_level": 0.015,
+           "run_status": "complete", "method": "ecc", "frames": 300, **errors,
+           "failure_rate": 0.125, "ms_per_frame": 4.567}
+    unscored = {**{column: "" for column in COLUMNS}, "run": "r1", "scenario": "corridor",
+                "seed": 4, "noise_level": 2.0, "run_status": "failed"}
+    lines = table_markdown([row, unscored]).splitlines()
+    assert len(lines) == 4 and lines[0].startswith("| Run | Scenario | Seed | Noise |")
+    assert lines[2] == "| r0 | corridor | 3 | 0.015 | complete | ecc | 300 | 0.12 | 1.50 | n/a " \
+                       "| 12.5% | 4.57 |"
+    assert lines[3] == "| r1 | corridor | 4 | 2 | failed |  |  |  |  |  |  |  |"
 
 
 def test_example_sweep_file_loads():
