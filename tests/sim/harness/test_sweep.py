@@ -22,8 +22,9 @@ from sim.harness.runner import RunConfig
 from sim.harness.scenario import SCENARIOS_DIR
 from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, RunOutcome,
-                               SweepError, completed_metrics, expand_sweep, load_sweep,
-                               plan_sweep, run_sweep, sweep_from_dict, table_markdown)
+                               SweepError, completed_metrics, default_sweep_dir, expand_sweep,
+                               load_sweep, plan_sweep, run_sweep, sweep_from_dict,
+                               table_markdown)
 from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep.plan import planned_scenario
 
@@ -154,6 +155,8 @@ def test_example_sweep_file_loads():
     spec = load_sweep(EXAMPLE_SWEEP)
     assert spec.name == "noise_sweep" and spec.noise_key == DEFAULT_NOISE_KEY
     assert spec.n_runs == len(spec.scenarios) * len(spec.seeds) * len(spec.noise_levels) > 1
+    assert default_sweep_dir(spec) == Path("results", "sweeps", "noise_sweep")
+    assert default_sweep_dir(spec, "elsewhere") == Path("elsewhere", "sweeps", "noise_sweep")
 
 
 def test_relative_scenario_paths_are_taken_from_the_sweep_files_folder(tmp_path):
