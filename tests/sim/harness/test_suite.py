@@ -23,7 +23,7 @@ from sim.harness.report import read_metrics, write_run_outputs
 from sim.harness.scenario import load_scenario
 from sim.harness.scoring import FrameRecord, summarize
 from sim.harness.suite import (COLUMNS, FIGURES, TABLE_CSV, TABLE_JSON, TABLE_MD, SuiteError,
-                               load_suite, plan_suite, run_suite,
+                               default_suite_dir, load_suite, plan_suite, run_suite,
                                suite_from_dict, write_suite_outputs)
 from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep import RunOutcome, load_sweep
@@ -178,6 +178,8 @@ def test_heldout_suite_spans_every_scene_and_gait():
         walking_s = scenario.duration_s - scenario.commands[1].t
         assert walking_s >= 8.0, sequence.name  # a few gait cycles
     assert not spec.record
+    assert default_suite_dir(spec) == Path("results", "suites", "heldout")
+    assert default_suite_dir(spec, "elsewhere") == Path("elsewhere", "suites", "heldout")
 
 
 def heldout_scene_seeds() -> set[int]:
@@ -658,6 +660,16 @@ def test_a_suite_sequence_is_recorded_once_and_scored_as_a_run_would(tmp_path):
         assert record_then_score(longer)["summary"]["run"]["ecc"]["errors"] == run_errors_14
         assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 14
     assert (tmp_path / "job" / SEQUENCE_FOLDER / "notes.txt").read_text() == "mine"
+    # A recording that ended with a fall is finished with fewer frames than planned; one with
+    # more is recorded again.
+    document = json.loads(header.read_text())
+    header.write_text(json.dumps({**document, "ended": "fell",
+                                  "fall": {"time_s": 0.4, "reason": "torso too low"}}))
+    recorded = header.stat().st_mtime_ns
+    record_then_score(RunConfig(**{**config.__dict__, "max_frames": 16}))
+    assert header.stat().st_mtime_ns == recorded
+    record_then_score(config)
+    assert load_sequence(tmp_path / "job" / SEQUENCE_FOLDER).n_frames == 12
 
 
 def test_an_interrupted_recording_is_not_scored_and_is_recorded_again(tmp_path, monkeypatch):
