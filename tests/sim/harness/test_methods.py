@@ -159,6 +159,21 @@ def test_diagnostics_beyond_plain_data_are_named_not_taken_for_the_methods_failu
                                                          "dropped_diagnostics"]
 
 
+def test_diagnostics_at_their_bounds_are_kept_and_a_step_beyond_is_dropped():
+    def nested(depth):  # ``depth`` lists around a number
+        value = 1
+        for _ in range(depth):
+            value = [value]
+        return value
+
+    motion = as_motion(Motion(1.0, 2.0, 3.0, diagnostics={
+        "widest": 2**1024 - 1, "too_wide": 2**1024, "deepest": nested(8),
+        "too_deep": nested(9)}))
+    assert motion.diagnostics["widest"] == 2**1024 - 1  # 1024 bits
+    assert motion.diagnostics["deepest"] == nested(8)
+    assert motion.diagnostics["dropped_diagnostics"] == ["too_wide", "too_deep"]
+
+
 @pytest.mark.parametrize("status, recorded", [
     ("lost\ntrack", "lost\\ntrack"), ("a\tb", "a\\tb"), ("nicht_gefunden_ä", "nicht_gefunden_ä"),
     ("OK", "wrong_type:status"), (" ok ", "wrong_type:status"), ("   ", "wrong_type:status"),
