@@ -21,7 +21,8 @@ from scipy.ndimage import gaussian_filter  # noqa: E402
 from sim.world.scenes import (SCENES, Floor, FloorParameterError, SceneParameterError,  # noqa: E402
                               build_scene)
 from sim.world.scenes.floor import START_FLAT_RADIUS_M, bump_field  # noqa: E402
-from sim.world.scenes.lane import lane_intrusions, polyline  # noqa: E402
+from sim.world.scenes.lane import (compiled_geom_boxes, lane_intrusions, path_distance,  # noqa: E402
+                                   polyline, start_heading_deg)
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
 from sim.world.sensor.tof_model import TOF_PRESETS  # noqa: E402
 
@@ -107,6 +108,29 @@ def test_polyline_lengths():
     np.testing.assert_allclose(path[-1], [1.5, 1.0], atol=1e-9)
     with pytest.raises(ValueError, match="line, arc"):
         polyline(("zigzag", 1.0))
+
+
+def test_a_path_is_measured_between_its_points_and_heads_along_its_first_segment():
+    path = np.array([[1.0, 0.0], [2.0, 0.0]])  # a metre between two points
+    boxes = np.array([[1.5, 0.1, 1.6, 0.2], [3.0, 0.0, 4.0, 1.0], [1.3, -0.2, 1.4, 0.5]])
+    np.testing.assert_allclose(path_distance(path, boxes), [0.1, 1.0, 0.0], atol=1e-12)
+    assert start_heading_deg(np.array([[1.0, 1.0], [1.0, 2.0], [5.0, 5.0]])) == 90.0
+    assert start_heading_deg(np.array([[2.0, 0.0], [1.0, 0.0]])) == 180.0
+
+
+def test_compiled_geom_boxes_are_in_the_world_frame():
+    model = mujoco.MjModel.from_xml_string("""
+        <mujoco><worldbody>
+          <geom name="floor" type="plane" size="5 5 0.1"/>
+          <body pos="1 2 0" euler="0 0 90">
+            <geom name="crate" type="box" pos="0.5 0 0.3" size="0.1 0.2 0.3"/>
+          </body>
+        </worldbody></mujoco>""")
+    boxes, ids = compiled_geom_boxes(model)
+    assert [model.geom(int(g)).name for g in ids] == ["crate"]  # no plane
+    # Turned a quarter left about the body's origin: the crate's centre at (1, 2.5), its
+    # x and y extents swapped.
+    np.testing.assert_allclose(boxes, [[0.8, 2.4, 0.0, 1.2, 2.6, 0.6]], atol=1e-9)
 
 
 def test_bad_scene_name_or_seed_is_a_value_error():
