@@ -95,6 +95,7 @@ def score(config: ScoreConfig) -> dict:
 
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
+    check_references(sequence, scenario.evaluation.reference)
     file_methods = {name: FileEstimation(path, sequence, config.check_estimates)
                     for name, path in config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
@@ -163,12 +164,21 @@ class SequenceFrames:
             yield SourceFrame(frame, row.gait_cycle, row.torso, truth=truth)
 
 
-def _check_reference(sequence, reference, frame) -> None:
-    expected = sequence.rows[frame.index].reference_frame
-    if reference.index != expected:
-        raise ValueError(f"{sequence.path / 'truth.csv'}: frame {frame.index}: reference_frame "
-                         f"is {expected} but the reference policy gives {reference.index}; "
-                         f"accepted: the truth.csv `egostab record` wrote")
+def check_references(sequence, policy: str) -> None:
+    """ValueError unless each frame's ``reference_frame`` in truth.csv is the frame that the
+    scenario's reference ``policy`` gives it (sim.harness.runner.ReferencePolicy), as
+    ``egostab record`` writes it: the methods are scored against the policy's references, the
+    estimates files against truth.csv's."""
+    from sim.harness.runner import ReferencePolicy
+
+    references = ReferencePolicy(policy)
+    for row in sequence.rows:
+        given = references.reference_for(row.frame, row.gait_cycle)
+        if row.reference_frame != given:
+            raise ValueError(f"{sequence.path / 'truth.csv'}: frame {row.frame}: "
+                             f"reference_frame is {row.reference_frame} but the reference "
+                             f"policy gives {given}; accepted: the truth.csv `egostab record` "
+                             f"wrote")
 
 
 class FileEstimation:
@@ -182,7 +192,7 @@ class FileEstimation:
     """
 
     def __init__(self, path: str | os.PathLike, sequence, checked: bool = False):
-        self.path, self.sequence, self.checked = Path(path), sequence, checked
+        self.path, self.checked = Path(path), checked
         # One read: the digest is of the very bytes scored, even if the file changes meanwhile.
         self.motions, self.sha256 = read_estimates(self.path, sequence.n_frames)
         self.analysis_ms: list[float] = []
@@ -194,7 +204,6 @@ class FileEstimation:
         from stabilizer.motion import Motion
         from stabilizer.verification import VerificationParams, shared_verifier
 
-        _check_reference(self.sequence, reference, frame)
         motion = self.motions.get(frame.index) or Motion.failed(MISSING)
         if self.checked and motion.ok:
             if reference.index != self._check_reference:
@@ -472,7 +481,6 @@ class _EstimationPool:
     def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
         from sim.harness.threads import single_thread_pool
 
-        self.sequence = sequence
         chunks = reference_chunks([row.reference_frame for row in sequence.rows],
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
@@ -482,7 +490,6 @@ class _EstimationPool:
         self.analysis_ms: dict[str, list[float]] = {method: [] for method in methods}
 
     def estimate(self, method: str, reference, frame):
-        _check_reference(self.sequence, reference, frame)
         return self._take(method, frame.index)
 
     def frame(self, index: int):

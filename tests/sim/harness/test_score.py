@@ -105,6 +105,27 @@ def test_more_workers_than_a_few_per_core_are_refused_before_any_work(folders, t
     assert "\n" not in err and not out.exists()
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_truth_whose_reference_is_not_the_policys_is_refused(folders, tmp_path, capsys,
+                                                               workers):
+    edited = tmp_path / "edited"
+    shutil.copytree(folders / "sequence", edited)
+    with open(edited / "truth.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.reader(handle))
+    column = rows[0].index("reference_frame")
+    assert rows[6][:1] == ["5"] and rows[6][column] == "0"  # one gait cycle: all against 0
+    rows[6][column] = "3"  # an earlier frame, as the format allows
+    with open(edited / "truth.csv", "w", newline="", encoding="utf-8") as handle:
+        csv.writer(handle, lineterminator="\n").writerows(rows)
+    assert main(["score", str(edited), "--methods", "ecc", "--out", str(tmp_path / "out"),
+                 "--quiet", "--no-record", "--workers", str(workers)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"egostab score: error: {edited / 'truth.csv'}: frame 5: reference_frame is 3 "
+                   f"but the reference policy gives 0; accepted: the truth.csv `egostab "
+                   f"record` wrote")
+    assert not (tmp_path / "out").exists()  # refused before any work
+
+
 def test_chunks_are_cut_only_where_the_reference_changes():
     references = [0] * 5 + [5] * 4 + [9] * 6
     chunks = reference_chunks(references, 3)
