@@ -195,6 +195,20 @@ def test_a_shipped_scenario_runs_into_a_folder_of_its_own_name(tmp_path, monkeyp
     assert (tmp_path / "corridor_straight" / "metrics.json").is_file()
 
 
+def test_without_out_each_command_writes_its_folder_of_the_working_folder(tmp_path,
+                                                                          monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    short = ["--max-frames", "2", "--quiet"]
+    assert main(["record", "corridor_straight", *short]) == 0
+    assert (tmp_path / "sequences" / "corridor_straight" / "sequence.json").is_file()
+    shutil.copy(SCENARIOS_DIR / "ci" / "ci_corridor.toml", tmp_path / "mine.toml")
+    assert main(["run", "mine.toml", *short, "--no-record", "--methods", "ecc"]) == 0
+    assert (tmp_path / "results" / "mine" / "metrics.json").is_file()
+    assert main(["score", "sequences/corridor_straight", "--no-record", "--quiet",
+                 "--methods", "ecc"]) == 0
+    assert (tmp_path / "results" / "corridor_straight" / "metrics.json").is_file()
+
+
 @pytest.mark.parametrize("command", [["run", "--no-record", "--max-frames", "2"],
                                      ["ideal", "corridor", "--frames", "2"]])
 def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
