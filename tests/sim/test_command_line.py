@@ -1,6 +1,7 @@
 """sim.command_line: one-line errors with exit status 2, and the tools that use them."""
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +20,16 @@ def test_an_error_is_one_line_naming_the_usage(capsys):
     assert stop.value.code == 2 and err.count("\n") == 1
     assert err == "tool: error: argument --count: '10': accepted: an integer from 1 to 9 " \
                   "(usage: tool --help)\n"
+
+
+def test_an_integer_option_takes_its_ends_and_refuses_one_beyond():
+    bounded, unbounded = integer_option(1, 9), integer_option(1)
+    assert (bounded("1"), bounded("9"), unbounded("1"), unbounded(str(10**12))) == \
+        (1, 9, 1, 10**12)
+    for parse, text in ((bounded, "0"), (bounded, "10"), (unbounded, "0"), (bounded, "1.0"),
+                        (bounded, "x")):
+        with pytest.raises(Exception, match=f"'{re.escape(text)}': accepted: an integer"):
+            parse(text)
 
 
 @pytest.mark.parametrize("text", ["nan", "inf", "-inf", "0", "x", "2.5"])
