@@ -20,7 +20,8 @@ from scipy.ndimage import gaussian_filter  # noqa: E402
 
 from sim.world.scenes import (SCENES, Floor, FloorParameterError, SceneParameterError,  # noqa: E402
                               build_scene)
-from sim.world.scenes.floor import START_FLAT_RADIUS_M, bump_field  # noqa: E402
+from sim.world.scenes.floor import (START_FLAT_RADIUS_M, BumpField,  # noqa: E402
+                                    bump_field)
 from sim.world.scenes.lane import (compiled_geom_boxes, lane_intrusions, path_distance,  # noqa: E402
                                    polyline, start_heading_deg)
 from sim.world.sensor.sr4000 import SR4000, add_probe_camera  # noqa: E402
@@ -131,6 +132,16 @@ def test_compiled_geom_boxes_are_in_the_world_frame():
     # Turned a quarter left about the body's origin: the crate's centre at (1, 2.5), its
     # x and y extents swapped.
     np.testing.assert_allclose(boxes, [[0.8, 2.4, 0.0, 1.2, 2.6, 0.6]], atol=1e-9)
+
+
+def test_bump_heights_are_exact_at_grid_points_bilinear_between_and_0_outside():
+    bumps = BumpField(np.arange(9.0).reshape(3, 3), np.array([0.0, 0.0]), np.array([1.0, 2.0]),
+                      0.5)  # columns at x = -1, 0, 1; rows at y = -2, 0, 2
+    points = [(-1.0, -2.0), (1.0, 2.0), (1.0, -2.0), (-1.0, 2.0), (0.0, 0.0), (0.5, 0.0),
+              (0.5, 1.0), (1.0, 1.0), (1.0 + 1e-9, 0.0), (0.0, -2.0 - 1e-9), (5.0, 5.0)]
+    np.testing.assert_allclose(bumps.height_at(points),
+                               0.5 * np.array([0.0, 8.0, 2.0, 6.0, 4.0, 4.5, 6.0, 6.5, 0, 0, 0]),
+                               atol=1e-12)
 
 
 def test_bad_scene_name_or_seed_is_a_value_error():
