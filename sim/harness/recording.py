@@ -53,7 +53,7 @@ from sim.atomic import atomic_path
 from sim.world.camera import SR4000_INTRINSICS, CameraIntrinsics, Frame
 from sim.harness.ground_truth import GroundTruth, pixel_rays
 from sim.harness.provenance import provenance
-from sim.harness.scoring import AXES, AXIS_UNITS
+from sim.harness.scoring import AXES, AXIS_UNITS, absolute_errors
 from stabilizer import available_methods
 from stabilizer.motion import Motion
 
@@ -521,16 +521,17 @@ class RunRecorder:
         truth_values = truth.motion.as_tuple() if truth is not None and truth.ok else None
         if truth_values is not None:
             values.append((RESIDUAL, truth.residual_rms_px))
+        errors = {method: absolute_errors(motion, truth.motion) for method, motion
+                  in estimates.items() if motion.ok and truth_values is not None}
         for position, axis in enumerate(AXES):
             if truth_values is not None:
                 values.append((f"series/{axis}/truth", truth_values[position]))
             for method, motion in estimates.items():
                 if not motion.ok:
                     continue
-                value = motion.as_tuple()[position]
-                values.append((f"series/{axis}/{method}", value))
-                if truth_values is not None:
-                    values.append((f"errors/{axis}/{method}", abs(value - truth_values[position])))
+                values.append((f"series/{axis}/{method}", motion.as_tuple()[position]))
+                if method in errors:
+                    values.append((f"errors/{axis}/{method}", errors[method][position]))
         for entity, value in values:
             if math.isfinite(value):
                 self._series[entity].append((index, time_s, float(value)))

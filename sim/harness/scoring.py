@@ -39,6 +39,13 @@ RAW_STREAM = "raw"
 LARGE_ERROR_DEG, LARGE_ERROR_PX = 5.0, 10.0
 
 
+def absolute_errors(estimate: Motion, truth: Motion) -> tuple[float, float, float]:
+    """|estimate - truth| along each of :data:`AXES`: the rotation's the short way round, in
+    [0, 180] degrees (a turn of 359.5 degrees is one of -0.5), x and y in pixels."""
+    return (abs(float(wrap_angle_deg(estimate.angle_deg - truth.angle_deg))),
+            abs(estimate.dx - truth.dx), abs(estimate.dy - truth.dy))
+
+
 @dataclass(frozen=True)
 class FrameRecord:
     """One (frame, method) result: estimate, truth, absolute errors, status and time.
@@ -78,10 +85,8 @@ class FrameRecord:
     def score(cls, *, frame_index: int, time_s: float, gait_cycle: int, reference_index: int,
               method: str, estimate: Motion, truth: GroundTruth, ms: float) -> "FrameRecord":
         """Compare ``estimate`` with ``truth`` for one frame and method."""
-        errors = (math.nan,) * 3
-        if estimate.ok and truth.ok:
-            errors = (abs(float(wrap_angle_deg(estimate.angle_deg - truth.motion.angle_deg))),
-                      abs(estimate.dx - truth.motion.dx), abs(estimate.dy - truth.motion.dy))
+        errors = (absolute_errors(estimate, truth.motion) if estimate.ok and truth.ok
+                  else (math.nan,) * 3)
         epe_px, epe_rms_px = truth.end_point_error(estimate)
         return cls(int(frame_index), float(time_s), int(gait_cycle), int(reference_index),
                    str(method), estimate.status, float(ms),

@@ -463,3 +463,29 @@ def test_a_method_has_one_colour_in_every_recording():
     assert method_colour("icp") == METHOD_COLOURS[available_methods().index("icp")]
     plugin = method_colour("my_package.module:Mine")
     assert plugin == method_colour("my_package.module:Mine") and plugin not in built_in
+
+
+def _scalars(path, entity):
+    """The values logged to ``entity`` over time, in order."""
+    values = []
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and "Scalars:scalars" in batch.schema.names:
+            values += [row[0] for row in batch.column("Scalars:scalars").to_pylist()]
+    return values
+
+
+def test_the_errors_logged_are_the_errors_scored_rotation_the_short_way_round(tmp_path):
+    """An estimate a whole turn and (1, -2) px off the truth: frames.csv scores 0 degrees, 1 px
+    and 2 px (sim.harness.scoring.absolute_errors), and the recording plots the same."""
+    frames = _frames()[:3]
+    path = tmp_path / "recording.rrd"
+    with RunRecorder(path, ("mine",)) as recorder:
+        for frame in frames:
+            truth = ground_truth(frames[0], frame)
+            angle, dx, dy = truth.motion.as_tuple()
+            estimate = Motion(angle + 360.0, dx + 1.0, dy - 2.0)
+            recorder.log_frame(frame, estimates={"mine": estimate}, truth=truth,
+                               compensated={"mine": compensate(frame.disparity8, estimate)})
+    for axis, error in (("rotation", 0.0), ("x", 1.0), ("y", 2.0)):
+        assert _scalars(path, f"/errors/{axis}/mine") == pytest.approx([error] * 3, abs=1e-9)
