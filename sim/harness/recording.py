@@ -521,8 +521,9 @@ class RunRecorder:
         truth_values = truth.motion.as_tuple() if truth is not None and truth.ok else None
         if truth_values is not None:
             values.append((RESIDUAL, truth.residual_rms_px))
-        errors = {method: absolute_errors(motion, truth.motion) for method, motion
-                  in estimates.items() if motion.ok and truth_values is not None}
+        errors = ({method: absolute_errors(motion, truth.motion)
+                   for method, motion in estimates.items() if motion.ok}
+                  if truth_values is not None else {})
         for position, axis in enumerate(AXES):
             if truth_values is not None:
                 values.append((f"series/{axis}/truth", truth_values[position]))

@@ -95,7 +95,7 @@ def score(config: ScoreConfig) -> dict:
 
     sequence = load_sequence(config.sequence)
     scenario = scenario_from_dict(sequence.scenario, str(sequence.path / SEQUENCE_JSON))
-    check_references(sequence, scenario.evaluation.reference)
+    _check_references(sequence, scenario.evaluation.reference)
     file_methods = {name: FileEstimation(path, sequence, config.check_estimates)
                     for name, path in config.estimates.items()}
     methods = tuple(config.methods or (() if file_methods else scenario.evaluation.methods))
@@ -164,7 +164,7 @@ class SequenceFrames:
             yield SourceFrame(frame, row.gait_cycle, row.torso, truth=truth)
 
 
-def check_references(sequence, policy: str) -> None:
+def _check_references(sequence, policy: str) -> None:
     """ValueError unless each frame's ``reference_frame`` in truth.csv is the frame that the
     scenario's reference ``policy`` gives it (sim.harness.runner.ReferencePolicy), as
     ``egostab record`` writes it: the methods are scored against the policy's references, the
