@@ -27,6 +27,7 @@ from sim.harness.interrupts import Interrupted
 from sim.harness.runner import STAGING_FOLDER, RecordConfig, record
 from sim.harness.validation import FileValueError
 from stabilizer import depth_to_disparity
+from stabilizer.motion import Motion, transform_points
 from stabilizer.testing import make_depth_scene
 
 
@@ -76,6 +77,34 @@ def test_run_ideal_replays_a_walking_runs_truth(tmp_path):
                                    methods=("t2fuzzy",)))
     errors = lambda metrics: metrics["summary"]["run"]["t2fuzzy"]["errors"]  # noqa: E731
     assert errors(replay) == errors(first)
+
+
+def test_an_ideal_runs_end_point_error_is_measured_on_every_other_measured_pixel(tmp_path):
+    """The walking truth's sample: the reference's measured pixels of even row and column,
+    those the true motion keeps in view; the truth itself is exact (its own error 0)."""
+    depth = make_depth_scene(7)
+    depth[20:60, 30:90] = 0.0  # unmeasured
+    np.save(tmp_path / "depth.npy", depth)
+    run_ideal(IdealConfig(str(tmp_path / "depth.npy"), str(tmp_path / "out"), methods=("ecc",),
+                          n_frames=4))
+    reference = load_image(str(tmp_path / "depth.npy"))
+    assert not reference[20:60, 30:90].any()
+    rows, cols = np.nonzero(reference[::2, ::2])
+    source = np.stack([2 * cols, 2 * rows], axis=1).astype(np.float64)
+    height, width = reference.shape
+    with open(tmp_path / "out" / "frames.csv", newline="", encoding="utf-8") as handle:
+        scored = list(csv.DictReader(handle))
+    assert len(scored) == 4 and all(row["status"] == "ok" for row in scored)
+    for row in scored:
+        truth, estimate = (Motion(*(float(row[f"{kind}_{key}"]) for key in
+                                    ("angle_deg", "dx_px", "dy_px"))) for kind in ("true", "est"))
+        target = transform_points(truth, source, reference.shape)
+        kept = ((target[:, 0] >= -0.5) & (target[:, 0] < width - 0.5)
+                & (target[:, 1] >= -0.5) & (target[:, 1] < height - 0.5))
+        distances = np.hypot(*(transform_points(estimate, source[kept], reference.shape)
+                               - target[kept]).T)
+        assert float(row["epe_px"]) == pytest.approx(distances.mean(), rel=1e-4, abs=1e-5)
+        assert float(row["truth_epe_px"]) == 0.0
 
 
 def test_a_trajectory_saved_again_by_a_spreadsheet_replays_the_same(tmp_path):
@@ -134,7 +163,8 @@ def test_disparity_png_round_trip_is_exact(tmp_path):
     assert np.array_equal(load_image(str(tmp_path / "d.png")), image)
 
 
-@pytest.mark.parametrize("data", [b"\x89PNG\r\n\x1a\nnot a header", b"not an image at all"])
+@pytest.mark.parametrize("data", [b"\x89PNG\r\n\x1a\nnot a header", b"not an image at all",
+                                  b"\x89PNG\r\n\x1a\n\x00\x00\x00\x0dIHDR" + bytes(9)])  # cut at 25
 def test_an_unreadable_image_is_refused_in_one_line(tmp_path, capfd, data):
     path = tmp_path / "broken.png"
     path.write_bytes(data)
