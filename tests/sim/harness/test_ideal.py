@@ -531,6 +531,18 @@ def test_an_ideal_image_longer_than_the_methods_take_is_resized_to_fit_them(tmp_
     assert run["image_size"] == [4096, 163] and run["image_size_read"] == [5000, 200]
 
 
+@pytest.mark.parametrize("shape, taken", [((1024, 1280), True), ((1024, 1281), False),
+                                          ((1280, 1024), True), ((100, 4096), True),
+                                          ((100, 4097), False), ((4097, 100), False)])
+def test_an_ideal_image_at_the_size_limits_is_taken_as_it_is(tmp_path, shape, taken):
+    np.save(tmp_path / "depth.npy", np.full(shape, 2.0))
+    if taken:
+        assert load_image(str(tmp_path / "depth.npy")).shape == shape
+    else:
+        with pytest.raises(ValueError, match="is larger than the ideal experiment accepts"):
+            load_image(str(tmp_path / "depth.npy"))
+
+
 def test_an_ideals_metrics_record_the_image_size_and_resize(tmp_path):
     image = np.kron(depth_to_disparity(make_depth_scene(3)), np.ones((10, 10), np.uint8))
     cv2.imwrite(str(tmp_path / "large.png"), image)  # 1760 x 1440 pixels
