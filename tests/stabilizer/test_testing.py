@@ -82,6 +82,17 @@ def test_noise_and_dropouts_are_drawn_for_every_frame():
     assert 0.05 < np.mean(dropped[10:] == 0) < 0.15
 
 
+def test_depth_noise_grows_with_the_depth():
+    depth = np.zeros((200, 200), np.float32)
+    depth[:100], depth[100:150] = 1.0, 4.0  # the rest unmeasured
+    noisy = corrupt_depth(depth, np.random.default_rng(1), noise=0.01)
+    for level, rows in ((1.0, slice(0, 100)), (4.0, slice(100, 150))):
+        error = noisy[rows] - level
+        assert abs(error.mean()) < 0.1 * 0.01 * level
+        assert error.std() == pytest.approx(0.01 * level, rel=0.05)
+    assert not noisy[150:].any()
+
+
 def test_motions_stay_within_their_bounds():
     _, _, motions = corpus_frames("clutter", 1, 50, max_angle_deg=5.0, max_shift_px=10.0)
     values = np.array([m.as_tuple() for m in motions])
