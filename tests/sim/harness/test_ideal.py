@@ -426,6 +426,17 @@ def test_an_ideal_sequence_frame_is_read_in_the_sequences_depth_unit(tmp_path, c
                  "--methods", "ecc", "--frames", "2", "--out", str(tmp_path / "o2")]) == 0
     assert json.loads((tmp_path / "o2" / "metrics.json").read_text())["run"][
         "depth_unit_mm"] == 0.1
+    # A header whose unit is not the format's is refused, naming it and what is allowed.
+    (sequence / "sequence.json").write_text(json.dumps(
+        {**{k: v for k, v in header.items() if k != "exact_depth_unit_m"}, "depth_unit_m": 0.5}))
+    capsys.readouterr()
+    for sub, problem in (("depth", "depth_unit_m: is 0.5"),
+                         ("exact", "exact_depth_unit_m: is missing")):
+        assert main(["ideal", str(sequence / sub / "000000.png"), "--methods", "ecc",
+                     "--frames", "2", "--out", str(tmp_path / f"refused_{sub}")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert f"{sequence / 'sequence.json'}: {problem}" in err and "\n" not in err, err
+        assert "(metres per PNG unit)" in err and not (tmp_path / f"refused_{sub}").exists()
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "1e9", "mm"])
