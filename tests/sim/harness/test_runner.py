@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import pytest
 import sim.harness.report
 import sim.harness.runner
 from scenarios import SCENARIOS_DIR
-from sim.harness.runner import ReferencePolicy, RunConfig, run
+from sim.harness.runner import ReferencePolicy, RunConfig, frame_count, run, walk_until
 from sim.world.sensor.sr4000 import SR4000
 from sim.world.walking import RobotSimulation
 from tests.sim.harness import plugin_methods
@@ -32,6 +33,43 @@ def _short_run(tmp_path, name="run", record=False, **kwargs):
                   overrides={"recording.enabled": True} if record else {})
     config.update(kwargs)
     return run(RunConfig(**config)), tmp_path / name
+
+
+def test_the_robot_walks_to_the_control_step_nearest_each_exposure():
+    """Steps of 10 ms, each under the command in force when it starts."""
+    class Robot:
+        control_period_s = 0.01
+
+        def __init__(self):
+            self.steps, self.time = 0, 0.0
+            self.commanded = []
+
+        def command(self, speed, yaw_rate):
+            self.commanded.append((self.steps, speed, yaw_rate))
+
+        def step(self):
+            self.steps += 1
+            self.time = self.steps * self.control_period_s
+
+    class Scenario:
+        @staticmethod
+        def command_at(time_s):
+            return SimpleNamespace(speed=0.1 if time_s >= 0.02 else 0.0, yaw_rate=0.0)
+
+    robot = Robot()
+    for exposure_s, steps in ((0.034, 3), (0.036, 4), (0.04, 4), (0.0449, 4), (0.0451, 5)):
+        walk_until(Scenario, robot, exposure_s)
+        assert robot.steps == steps, exposure_s
+    assert robot.commanded == [(0, 0.0, 0.0), (1, 0.0, 0.0), (2, 0.1, 0.0), (3, 0.1, 0.0),
+                               (4, 0.1, 0.0)]
+
+
+def test_a_run_has_the_frames_of_its_duration_at_most_max_frames():
+    scenario = SimpleNamespace(duration_s=2.01, sensor=SimpleNamespace(fps=30.0))
+    assert [frame_count(scenario, most) for most in (None, 1, 60, 100)] == [60, 1, 60, 60]
+    for most in (0, -1):
+        with pytest.raises(ValueError, match="max_frames must be >= 1 or None"):
+            frame_count(scenario, most)
 
 
 def test_run_writes_every_output_and_they_agree(tmp_path):
