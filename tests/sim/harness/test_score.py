@@ -18,7 +18,9 @@ from scenarios import SCENARIOS_DIR
 from sim.harness.cli import main
 from sim.harness.runner import RecordConfig, RunConfig, record, run
 from sim.harness.score import ScoreConfig, reference_chunks, score
+from sim.harness.sequence import load_sequence
 from tests.sim.harness.test_recording import _rows_per_entity
+from tests.sim.harness.truth_files import set_truth_cell
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 METHODS = ("t2fuzzy", "ecc")
@@ -110,13 +112,10 @@ def test_a_truth_whose_reference_is_not_the_policys_is_refused(folders, tmp_path
                                                                workers):
     edited = tmp_path / "edited"
     shutil.copytree(folders / "sequence", edited)
-    with open(edited / "truth.csv", newline="", encoding="utf-8") as handle:
-        rows = list(csv.reader(handle))
-    column = rows[0].index("reference_frame")
-    assert rows[6][:1] == ["5"] and rows[6][column] == "0"  # one gait cycle: all against 0
-    rows[6][column] = "3"  # an earlier frame, as the format allows
-    with open(edited / "truth.csv", "w", newline="", encoding="utf-8") as handle:
-        csv.writer(handle, lineterminator="\n").writerows(rows)
+    truth = edited / "truth.csv"
+    assert load_sequence(edited).rows[5].reference_frame == 0  # the first gait cycle's
+    # Frame 5 against frame 3, an earlier frame, as the format allows.
+    truth.write_text(set_truth_cell(truth.read_text(), 5, "reference_frame", "3"))
     assert main(["score", str(edited), "--methods", "ecc", "--out", str(tmp_path / "out"),
                  "--quiet", "--no-record", "--workers", str(workers)]) == 2
     err = capsys.readouterr().err.strip()

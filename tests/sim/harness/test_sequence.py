@@ -20,6 +20,7 @@ from sim.harness.sequence import (EXACT_DEPTH_UNIT_M, FINE_DEPTH_UNIT_M, FORMAT,
                                   load_sequence, remove_recording, reported_depth_unit_m)
 from sim.harness.validation import FileValueError
 from sim.world.camera import Frame
+from tests.sim.harness.truth_files import set_truth_cell
 
 CI_CORRIDOR = str(SCENARIOS_DIR / "ci" / "ci_corridor.toml")
 N_FRAMES = 5
@@ -154,15 +155,6 @@ def _folder_in_place_of(path):
     path.mkdir()
 
 
-def _set_cell(text: str, frame: int, column: str, value: str) -> str:
-    lines = text.splitlines()
-    header = lines[0].split(",")
-    cells = lines[frame + 1].split(",")
-    cells[header.index(column)] = value
-    lines[frame + 1] = ",".join(cells)
-    return "\n".join(lines) + "\n"
-
-
 def test_a_truth_table_saved_with_a_byte_order_mark_reads_the_same(sequence_dir, tmp_path):
     copy = _broken_copy(sequence_dir, tmp_path,
                         _edit_truth(lambda text: text.encode("utf-8-sig")))
@@ -174,7 +166,7 @@ def test_a_frame_without_a_truth_reads_back_as_one(sequence_dir, tmp_path):
     def no_truth(text):
         for column, value in (("angle_deg", "nan"), ("dx", "nan"), ("dy", "nan"),
                               ("truth_residual_px", "nan"), ("truth_status", "no_overlap")):
-            text = _set_cell(text, 2, column, value)
+            text = set_truth_cell(text, 2, column, value)
         return text.encode()
 
     row = load_sequence(_broken_copy(sequence_dir, tmp_path, _edit_truth(no_truth))).rows[2]
@@ -192,8 +184,8 @@ def test_a_frame_without_a_truth_reads_back_as_one(sequence_dir, tmp_path):
      "truth.csv"),
     (lambda folder: (folder / "sequence.json").write_text("{not json"), "sequence.json"),
     (_edit_truth(lambda text: text.encode("utf-16")), "truth.csv: encoding"),
-    (_edit_truth(lambda text: _set_cell(text, 2, "tx", "nan").encode()), "truth.csv:4: tx"),
-    (_edit_truth(lambda text: _set_cell(text, 1, "time_s", "inf").encode()),
+    (_edit_truth(lambda text: set_truth_cell(text, 2, "tx", "nan").encode()), "truth.csv:4: tx"),
+    (_edit_truth(lambda text: set_truth_cell(text, 1, "time_s", "inf").encode()),
      "truth.csv:3: time_s"),
     (_set_json("frames", 4.5), "sequence.json: frames"),
     (_set_json("frames", True), "sequence.json: frames"),
@@ -217,9 +209,9 @@ def test_a_frame_without_a_truth_reads_back_as_one(sequence_dir, tmp_path):
     (_set_json("fall", "x"), "sequence.json: fall"),
     (_set_json("scenario", [1, 2]), "sequence.json: scenario"),
     (_set_json("depth_unit_m", "0.0001"), "sequence.json: depth_unit_m: is '0.0001'; allowed"),
-    (_edit_truth(lambda text: _set_cell(text, 4, "reference_frame", "50").encode()),
+    (_edit_truth(lambda text: set_truth_cell(text, 4, "reference_frame", "50").encode()),
      "truth.csv:6: reference_frame"),
-    (_edit_truth(lambda text: _set_cell(text, 2, "reference_frame", "4").encode()),
+    (_edit_truth(lambda text: set_truth_cell(text, 2, "reference_frame", "4").encode()),
      "truth.csv:4: reference_frame"),
 ])
 def test_a_bad_sequence_is_refused_naming_the_file(sequence_dir, tmp_path, damage, named):
