@@ -228,6 +228,63 @@ def test_bad_commands_and_params_are_value_errors(model):
     assert resolve_gait("paper_like") is GAIT_PRESETS["paper_like"]
 
 
+def positive(name):
+    return f"{name} must be > 0"
+
+
+LEG = "allowed: 0 to 0.3 m (the leg's length)"
+ANGLE = "allowed: -90 to 90 deg"
+GYRO_GAIN = "allowed: 0 to 1 s"
+
+
+@pytest.mark.parametrize("name, accepted, refused", [
+    *[(name, [1e-6, 0.3], [(0.0, positive(name)), (0.3001, LEG)])
+      for name in ("step_length_max_m", "step_width_m", "step_height_m")],
+    ("lateral_sway_m", [-0.0375, 0.0375],
+     [(-0.0376, "allowed: -0.0375 to 0.0375 m"), (0.0376, "allowed: -0.0375 to 0.0375 m")]),
+    ("step_yaw_max_deg", [1e-6, 90.0], [(0.0, positive("step_yaw_max_deg")), (90.001, ANGLE)]),
+    *[(name, [-90.0, 90.0], [(-90.001, ANGLE), (90.001, ANGLE)])
+      for name in ("torso_lean_deg", "waist_roll_amp_deg", "waist_yaw_amp_deg",
+                   "head_nod_amp_deg", "arm_swing_deg")],
+    *[(name, [0.0, 1.0], [(-1e-6, GYRO_GAIN), (1.001, GYRO_GAIN)])
+      for name in ("gyro_ankle_pitch_gain", "gyro_ankle_roll_gain")],
+    ("tilt_ankle_gain", [0.0, 5.0], [(-1e-6, "allowed: 0 to 5 ("), (5.001, "allowed: 0 to 5 (")]),
+    ("com_height_m", [1e-6, 2.0], [(0.0, positive("com_height_m")), (2.001, "allowed: 0 to 2.0 m")]),
+    ("step_period_s", [0.1, 60.0],
+     [(0.0999, "allowed: 0.1 to 60.0 s"), (60.001, "allowed: 0.1 to 60.0 s")]),
+    ("double_support_ratio", [1e-6, 0.999999], [(0.0, "must be in (0, 1)"), (1.0, "must be in (0, 1)")]),
+])
+def test_gait_parameters_take_their_ranges_ends_and_refuse_beyond_them(name, accepted, refused):
+    """Each bounded GaitParams field takes the ends of its range and refuses a value just
+    beyond them, naming the field and what it allows."""
+    for value in accepted:
+        assert getattr(GaitParams(**{name: value}), name) == value
+    for value, allowed in refused:
+        with pytest.raises(ValueError, match=re.escape(name)) as refusal:
+            GaitParams(**{name: value})
+        assert allowed in str(refusal.value)
+
+
+@pytest.mark.parametrize("forward_mps, yaw_rate_dps, advance_m, turn_deg", [
+    (10.0, 0.0, 0.06, 0.0), (-10.0, 0.0, 0.06, 0.0), (0.0, 1e3, 0.0, 12.0), (0.0, -1e3, 0.0, -12.0)])
+def test_commands_beyond_the_gaits_limits_walk_its_longest_step_and_turn(model, forward_mps,
+                                                                         yaw_rate_dps, advance_m,
+                                                                         turn_deg):
+    """A command beyond the gait's top speed or yaw rate plans steps of ``step_length_max_m``
+    (0.06 m) or turns of ``step_yaw_max_deg`` (12 deg) a step, the top speed and rate being
+    these over ``step_period_s`` (0.5 s): 0.12 m/s and 24 deg/s."""
+    sim = RobotSimulation(model, seed=0)
+    assert (sim.gait.max_forward_speed_mps, sim.gait.max_yaw_rate_dps) == pytest.approx((0.12, 24.0))
+    sim.command(forward_mps, yaw_rate_dps)
+    sim.step()
+    centres = [step.centre_after for step in sim.controller.planner.steps]
+    assert len(centres) >= 3
+    for before, after in itertools.pairwise(centres):
+        assert math.hypot(after.x - before.x, after.y - before.y) == pytest.approx(advance_m)
+        # Plus the heading feedback's small turn (under 0.1 deg standing still).
+        assert math.degrees(after.yaw - before.yaw) == pytest.approx(turn_deg, abs=0.1)
+
+
 # -- controller parts ---------------------------------------------------------------------
 
 def test_leg_ik_matches_mujoco_forward_kinematics(model):
