@@ -339,6 +339,45 @@ def test_preview_control_tracks_a_zmp_staircase():
     assert np.abs(controller.state[0]).max() < 0.045      # the CoM sways less than the feet
 
 
+def sole_yaws(sim):
+    """The measured headings of the left and right soles, radians."""
+    mats = [sim.data.site(f"{MODEL_NAME}/{side}_sole").xmat for side in ("l", "r")]
+    return [math.atan2(mat[3], mat[0]) for mat in mats]
+
+
+def test_the_torso_faces_the_mean_heading_of_its_feet_while_turning():
+    """docs/walking.md, "One control period": the torso faces the mean heading of the feet; in
+    a turn in place at the top rate (12 deg a step) the measured torso stays within 2 deg of
+    the measured soles' mean heading (0.3 deg here)."""
+    sim = RobotSimulation(compile_world(assemble(start_yaw_deg=120.0)), seed=0)
+    sim.command(0.0, sim.gait.max_yaw_rate_dps)
+    while sim.time < 6.0:
+        sim.step()
+        left, right = sole_yaws(sim)
+        middle = right + math.remainder(left - right, 2 * math.pi) / 2.0
+        assert abs(math.degrees(math.remainder(sim.torso_pose()[1] - middle, 2 * math.pi))) < 2.0
+    assert sim.fall is None
+
+
+@pytest.mark.parametrize("start_yaw_deg", [0.0, 120.0])
+def test_the_heading_feedback_steers_to_the_commanded_heading(start_yaw_deg):
+    """The heading goal is the start heading plus the integral of the yaw-rate commands: 3 s
+    at 24 deg/s then walking straight on, the torso's heading swings about start + 72 deg
+    (from 58 to 95 deg, docs/walking.md "Known limits") and averages within 3 deg of it over
+    the walk's last 10 s, whatever the start heading."""
+    sim = RobotSimulation(compile_world(assemble(start_yaw_deg=start_yaw_deg)), seed=0)
+    sim.command(0.0, 24.0)
+    sim.run(3.0)
+    sim.command(sim.gait.max_forward_speed_mps, 0.0)
+    sim.run(18.0)
+    turned = []
+    while sim.time < 31.0:
+        sim.step()
+        turned.append(heading_change(sim, math.radians(start_yaw_deg)))
+    assert sim.fall is None
+    assert np.mean(turned) == pytest.approx(72.0, abs=3.0)
+
+
 def test_planner_turns_in_place_and_stops_feet_side_by_side():
     planner = FootstepPlanner(Pose2D(0.0, 0.0, 0.0), 0.5, 0.2, 0.09, 0.03, 0.0)
     planner.set_command(0.0, math.radians(10.0), 0.0)
