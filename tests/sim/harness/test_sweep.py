@@ -75,9 +75,11 @@ def _ctrl_c_heard() -> bool:
 
 
 def failing_run(config: RunConfig) -> dict:
-    """Like fake_run, but the runs of seed 1 raise."""
+    """Like fake_run, but the runs of seed 1 raise, with a message of two lines (the tables
+    give the first)."""
     if config.seed == 1:
-        raise RuntimeError(f"simulated crash in {Path(config.out_dir).name}")
+        raise RuntimeError(f"simulated crash in {Path(config.out_dir).name}\n"
+                           f"a second line, as of a traceback")
     return fake_run(config)
 
 
