@@ -260,9 +260,12 @@ def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) 
 
 
 def _run_as_ray_task(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
-    """``run_fn(config)`` in a Ray worker, which a cancel can interrupt: Ray cancels a running
-    task by a Ctrl-C of its worker, which a worker started with Ctrl-C ignored (a sweep started
-    in the background: ``&``, ``nohup``, a batch job) never felt, so its run went on to the end."""
+    """``run_fn(config)`` in a Ray worker, on one OpenCV thread (the BLAS and OpenMP ones come
+    from the worker's environment, set as Ray starts it), and which a cancel can interrupt: Ray
+    cancels a running task by a Ctrl-C of its worker, which a worker started with Ctrl-C
+    ignored (a sweep started in the background: ``&``, ``nohup``, a batch job) never felt, so
+    its run went on to the end."""
+    limit_threads()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.default_int_handler)
     return run_fn(config)

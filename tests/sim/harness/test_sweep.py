@@ -63,7 +63,8 @@ def fake_run(config: RunConfig) -> dict:
     write_run_outputs(run_dir, scenario=planned_scenario(config)[1],
                       records=records, summary=summarize(records),
                       meta={"seed": config.seed, "max_frames": config.max_frames,
-                            "parent_mark": PARENT_MARK, "ctrl_c": _ctrl_c_heard()},
+                            "parent_mark": PARENT_MARK, "ctrl_c": _ctrl_c_heard(),
+                            "opencv_threads": _opencv_threads()},
                       status="complete", plots=False)
     return read_metrics(run_dir)
 
@@ -72,6 +73,12 @@ def _ctrl_c_heard() -> bool:
     """Whether Ctrl-C raises KeyboardInterrupt here: handled so, and not blocked."""
     return (signal.getsignal(signal.SIGINT) is signal.default_int_handler
             and signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, []))
+
+
+def _opencv_threads() -> int:
+    import cv2
+
+    return cv2.getNumThreads()
 
 
 def failing_run(config: RunConfig) -> dict:
@@ -448,6 +455,7 @@ def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch, sweep_hears
         signal.signal(signal.SIGINT, previous)
     for outcome in result.outcomes:
         assert outcome.metrics["run"]["parent_mark"] == "module default"  # not inherited
+        assert outcome.metrics["run"]["opencv_threads"] == 1  # one thread per process
         # Started deaf to Ctrl-C (no traceback of theirs while they import), they hear it
         # when they run if the sweep does: an interrupted sweep's runs end with complete files.
         assert outcome.metrics["run"]["ctrl_c"] is sweep_hears_ctrl_c
@@ -507,6 +515,7 @@ def test_ray_backend_on_a_local_instance(tmp_path):
     finally:
         ray.shutdown()
     assert not resumed.failed
+    assert {o.metrics["run"]["opencv_threads"] for o in resumed.outcomes} == {1}
     assert sorted(o.run.name for o in resumed.outcomes if not o.skipped) == sorted(
         o.run.name for o in result.failed)
     plan = plan_sweep(spec, tmp_path)
