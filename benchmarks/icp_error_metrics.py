@@ -1,6 +1,6 @@
 """ICP's two error metrics side by side: point-to-point and point-to-line (docs/peers.md, ICP).
 
-    OMP_NUM_THREADS=1 python benchmarks/icp_error_metrics.py        # about a minute
+    python benchmarks/icp_error_metrics.py        # about a minute
 
 Two measurements, both metrics in one process, one thread:
 
@@ -21,7 +21,11 @@ import sys
 import time
 from pathlib import Path
 
-import sim  # noqa: F401  (first: numpy and OpenCV on the SIMD paths of egostab's runs)
+# First: importing sim puts numpy and OpenCV on the SIMD paths of egostab's runs, and
+# limit_threads gives them one thread each, as where egostab estimates, before they load.
+from sim.harness.threads import limit_threads
+
+limit_threads()
 
 import cv2
 import numpy as np

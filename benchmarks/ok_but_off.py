@@ -22,7 +22,11 @@ import json
 import sys
 from pathlib import Path
 
-import sim  # noqa: F401  (first: numpy and OpenCV on the SIMD paths of egostab's runs)
+# First: importing sim puts numpy and OpenCV on the SIMD paths of egostab's runs, and
+# limit_threads gives them one thread each, as where egostab estimates, before they load.
+from sim.harness.threads import limit_threads
+
+limit_threads()
 
 import cv2
 import numpy as np

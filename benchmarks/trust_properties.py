@@ -18,7 +18,11 @@ from __future__ import annotations
 import math
 import sys
 
-import sim  # noqa: F401  (first: numpy and OpenCV on the SIMD paths of egostab's runs)
+# First: importing sim puts numpy and OpenCV on the SIMD paths of egostab's runs, and
+# limit_threads gives them one thread each, as where egostab estimates, before they load.
+from sim.harness.threads import limit_threads
+
+limit_threads()
 
 import cv2
 import numpy as np

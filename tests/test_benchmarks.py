@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from sim.harness.cpu_paths import CPU_PATH_VARIABLES, pinned_paths
+from sim.harness.threads import THREAD_VARIABLES
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = sorted((ROOT / "benchmarks").glob("*.py"))
@@ -24,7 +25,8 @@ spec = importlib.util.spec_from_file_location("script", sys.argv[1])
 spec.loader.exec_module(importlib.util.module_from_spec(spec))
 loaded = [name for name in ("numpy", "cv2") if name in sys.modules]
 print(json.dumps({"loaded": loaded,
-                  "paths": {name: os.environ.get(name) for name in json.loads(sys.argv[2])}}))
+                  "paths": {name: os.environ.get(name) for name in json.loads(sys.argv[2])},
+                  "opencv_threads": sys.modules["cv2"].getNumThreads() if "cv2" in loaded else None}))
 """
 
 
@@ -43,6 +45,20 @@ def test_a_benchmark_loads_numpy_and_opencv_only_on_the_pinned_paths(script):
     if found["loaded"]:
         assert {name: value for name, value in found["paths"].items() if value} \
             == pinned_paths()
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=[script.name for script in SCRIPTS])
+def test_a_benchmark_that_loads_opencv_runs_it_and_blas_on_one_thread(script):
+    # As egostab's estimates run: their figures (timings, process CPU time) are for one core.
+    environment = {name: value for name, value in os.environ.items()
+                   if name not in THREAD_VARIABLES}
+    done = subprocess.run([sys.executable, "-c", PROBE, str(script), json.dumps(THREAD_VARIABLES)],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT, env=environment)
+    assert done.returncode == 0, done.stderr
+    found = json.loads(done.stdout)
+    if "cv2" in found["loaded"]:
+        assert found["opencv_threads"] == 1
+        assert set(found["paths"].values()) == {"1"}
 
 
 def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
