@@ -33,6 +33,7 @@ METHODS = ("t2fuzzy", "sift")
 #: Per-method error slope of the fake runs: |error| = slope * noise level + seed / 100.
 SLOPES = {"t2fuzzy": 1.0, "sift": 2.0}
 CALLS_LOG = "fake_calls.txt"
+INTERVAL_LOG = "fake_interval.txt"
 #: Set by a test in the parent process; a spawned (not forked) worker sees this default.
 PARENT_MARK = "module default"
 
@@ -44,7 +45,9 @@ def small_spec(**changes):
 
 
 def fake_run(config: RunConfig) -> dict:
-    """Stand-in for sim.harness.runner.run: 3 frames per method, errors from the noise level."""
+    """Stand-in for sim.harness.runner.run: 3 frames per method, errors from the noise level;
+    the time it started and ended goes to INTERVAL_LOG."""
+    started = time.time()
     run_dir = Path(config.out_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     with open(run_dir / CALLS_LOG, "a", encoding="utf-8") as log:
@@ -66,6 +69,7 @@ def fake_run(config: RunConfig) -> dict:
                             "parent_mark": PARENT_MARK, "ctrl_c": _ctrl_c_heard(),
                             "opencv_threads": _opencv_threads()},
                       status="complete", plots=False)
+    (run_dir / INTERVAL_LOG).write_text(f"{started} {time.time()}")
     return read_metrics(run_dir)
 
 
@@ -515,6 +519,11 @@ def test_ray_backend_on_a_local_instance(tmp_path):
     finally:
         ray.shutdown()
     assert not resumed.failed
+    # --workers 1: one run at a time.
+    first, second = sorted(tuple(map(float, (Path(o.run.config.out_dir) / INTERVAL_LOG)
+                                     .read_text().split()))
+                           for o in resumed.outcomes if not o.skipped)
+    assert first[1] <= second[0]
     assert {o.metrics["run"]["opencv_threads"] for o in resumed.outcomes} == {1}
     assert sorted(o.run.name for o in resumed.outcomes if not o.skipped) == sorted(
         o.run.name for o in result.failed)
