@@ -697,15 +697,3 @@ def test_an_interrupted_recording_is_not_scored_and_is_recorded_again(tmp_path, 
     assert record_then_score(config)["summary"]["n_frames"] == 6
     sequence = json.loads((tmp_path / "job" / SEQUENCE_FOLDER / "sequence.json").read_text())
     assert sequence["ended"] == "complete" and sequence["frames"] == 6
-
-
-def test_a_stopped_sweep_starts_no_queued_run(monkeypatch):
-    import threading
-
-    ran, stopping = [], threading.Event()
-    monkeypatch.setattr(sweep_execute, "_stopping", stopping)
-    assert sweep_execute._run_unless_stopped(ran.append, "first") is None
-    stopping.set()  # the parent was interrupted
-    with pytest.raises(KeyboardInterrupt, match="not started"):
-        sweep_execute._run_unless_stopped(ran.append, "queued")
-    assert ran == ["first"]

@@ -102,6 +102,15 @@ def crashing_run(config: RunConfig) -> dict:
     return fake_run(config)
 
 
+def interrupting_run(config: RunConfig) -> dict:
+    """Like fake_run, but the run of lab_clutter at noise 0.5 interrupts the sweep (a Ctrl-C of
+    its parent) and goes on for a second."""
+    if "lab_clutter" in config.scenario and config.overrides[DEFAULT_NOISE_KEY] == 0.5:
+        os.kill(os.getppid(), signal.SIGINT)
+        time.sleep(1.0)
+    return fake_run(config)
+
+
 def calls(run_dir) -> int:
     path = Path(run_dir) / CALLS_LOG
     return len(path.read_text().splitlines()) if path.exists() else 0
@@ -492,6 +501,23 @@ def test_a_run_that_ends_its_worker_process_fails_alone(tmp_path):
     assert {outcome.run.name for outcome in result.failed} == crashed
     assert all("BrokenProcessPool" in outcome.error for outcome in result.failed)
     assert sum(outcome.status == "complete" for outcome in result.outcomes) == 8 - len(crashed)
+
+
+def test_an_interrupted_sweep_starts_no_queued_run(tmp_path):
+    # The pool hands its worker one more queued run than it can cancel: that one must not
+    # start once the sweep is stopping. The run under way ends with its files.
+    spec = small_spec(seeds=[0], noise_levels=[0.5, 2.0])
+    plan = plan_sweep(spec, tmp_path)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_sweep(spec, tmp_path, workers=1, run_fn=interrupting_run)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert [r.name for r in plan if calls(r.config.out_dir)] == [
+        "corridor_straight__seed0__noise0.5", "corridor_straight__seed0__noise2.0",
+        "lab_clutter__seed0__noise0.5"]
+    check_table(tmp_path, spec, {r.name: "complete" for r in plan})
 
 
 def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
