@@ -13,8 +13,10 @@ from rerun.chunk import RrdReader
 from scipy.spatial.transform import Rotation
 
 from sim.harness.ground_truth import ground_truth, pixel_rays
-from sim.harness.recording import (POINT_CLOUD_STRIDE, RunRecorder, depth_millimetres,
-                                   depth_points_world, ellipse_outline, label_colours)
+from sim.harness.recording import (INFINITE_PLANE_HALF_M, PLANE_THICKNESS_M,
+                                   POINT_CLOUD_STRIDE, RunRecorder, depth_millimetres,
+                                   depth_points_world, ellipse_outline, geom_archetypes,
+                                   label_colours, overhead, world_geoms)
 from sim.world.camera import SR4000_INTRINSICS
 from stabilizer.motion import Motion, compensate
 from tests.sim.harness.scene_frames import box_world, camera_matrix, render_frame
@@ -151,6 +153,32 @@ def test_methods_without_diagnostics_log_no_segmentation(tmp_path):
     assert rows["/errors/x/icp"][1] == 0  # no truth given, so no error
 
 
+@pytest.mark.parametrize("n_labels, dtype", [(255, np.uint8), (256, np.uint16)])
+def test_segmentation_keeps_every_label_in_the_smallest_type(tmp_path, n_labels, dtype):
+    labels = np.zeros((144, 176), np.int32)
+    labels.flat[:n_labels] = np.arange(1, n_labels + 1)
+    path = tmp_path / "labels.rrd"
+    with RunRecorder(path, ["t2fuzzy"]) as rec:
+        rec.log_frame(_frames()[1], estimates={"t2fuzzy": Motion(
+            0.0, 0.0, 0.0, diagnostics={"labels": labels, "ellipses": []})})
+    (buffer,) = _column(path, "/images/segmentation", "SegmentationImage:buffer")
+    stored = np.asarray(buffer, dtype=np.uint8).view(dtype).reshape(labels.shape)
+    np.testing.assert_array_equal(stored, labels)
+
+
+def test_ellipses_are_drawn_in_rerun_pixel_coordinates(recording):
+    # The method's ellipse centres are at pixel centres = integers; rerun's pixel centres are
+    # at +0.5.
+    path, _ = recording
+    outlines = _column(path, "/images/segmentation/ellipses", "LineStrips2D:strips")
+    assert len(outlines) == N_FRAMES
+    for outline, (cx, cy, half_major, half_minor, _) in zip(outlines[0], ELLIPSES):
+        outline = np.asarray(outline)
+        centre = (outline.min(axis=0) + outline.max(axis=0)) / 2.0
+        assert centre == pytest.approx([cx + 0.5, cy + 0.5], abs=0.05)
+    assert np.ptp(np.asarray(outlines[0][0]), axis=0) == pytest.approx([50.0, 30.0], abs=0.05)
+
+
 def test_bad_arguments_are_rejected(tmp_path):
     with pytest.raises(ValueError, match="frame_stride"):
         RunRecorder(tmp_path / "a.rrd", ["sift"], frame_stride=0)
@@ -189,10 +217,13 @@ def test_depth_points_are_the_valid_pixels_only():
     frame = _frames()[0]
     valid = frame.valid.copy()
     valid[:, :88] = False  # the left half measured nothing, whatever its depth says
+    depth = frame.depth_m.copy()
+    depth[:, 88:120] = 0.0  # nor do pixels at no distance, though marked valid
     rows, cols, _ = pixel_rays(SR4000_INTRINSICS, POINT_CLOUD_STRIDE)
-    kept = valid[rows, cols] & (frame.depth_m[rows, cols] > 0)
-    cloud = depth_points_world(dataclasses.replace(frame, valid=valid), SR4000_INTRINSICS)
-    assert 0 < len(cloud) == np.count_nonzero(kept) < np.count_nonzero(frame.valid[rows, cols])
+    kept = valid[rows, cols] & (depth[rows, cols] > 0)
+    cloud = depth_points_world(dataclasses.replace(frame, valid=valid, depth_m=depth),
+                               SR4000_INTRINSICS)
+    assert 0 < len(cloud) == np.count_nonzero(kept) < np.count_nonzero(valid[rows, cols])
 
 
 def test_label_colours_start_with_unlabelled_black():
@@ -251,6 +282,7 @@ WORLD_XML = """
     <geom name="ball" type="sphere" size="0.25" pos="2 -1 0.25"/>
     <geom name="rock" type="mesh" mesh="tetra" pos="3 3 0"/>
     <geom name="hidden" type="box" size="1 1 1" group="3"/>
+    <geom name="glass" type="box" size="0.5 0.5 0.5" pos="-2 2 0.5" rgba="1 1 1 0"/>
     <body name="ceiling" pos="0 0 2.5">
       <geom type="box" size="5 4 0.05"/>
     </body>
@@ -319,7 +351,7 @@ def test_scene_geoms_are_logged_once_in_world_coordinates(world_recording):
     (centres,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:centers")
     (colours,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:colors")
     (quaternions,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:quaternions")
-    assert len(half_sizes) == 2  # floor and crate; the group-3 geom is not drawn
+    assert len(half_sizes) == 2  # floor and crate; the group-3 and transparent geoms are not
     assert np.allclose(half_sizes[0], [5.0, 4.0, 0.005]) and np.allclose(centres[0], [0, 0, -0.005])
     assert colours[0] == 0xFF0000FF and colours[1] == 0x808080FF  # rgba packed, MuJoCo grey
     assert np.allclose(half_sizes[1], [0.1, 0.2, 0.3]) and np.allclose(centres[1], [1, 2, 0.3])
@@ -336,12 +368,85 @@ def test_scene_geoms_are_logged_once_in_world_coordinates(world_recording):
     (vertices,) = _column(world_recording, "/world/scene/mesh_5", "Mesh3D:vertex_positions")
     assert len(vertices) == 4 and np.allclose(np.min(vertices, axis=0), [3.0, 3.0, 0.0],
                                               atol=1e-5)
+    (triangles,) = _column(world_recording, "/world/scene/mesh_5", "Mesh3D:triangle_indices")
+    assert len(triangles) == 4 and set(np.ravel(triangles)) == {0, 1, 2, 3}  # the tetrahedron
     # The ceiling is drawn as a wireframe so the robot stays visible from above.
     (ceiling,) = _column(world_recording, "/world/scene/overhead/boxes", "Boxes3D:centers")
     assert np.allclose(ceiling, [[0.0, 0.0, 2.5]])
     (fill,) = _column(world_recording, "/world/scene/overhead/boxes", "Boxes3D:fill_mode")
     (solid,) = _column(world_recording, "/world/scene/boxes", "Boxes3D:fill_mode")
     assert fill != solid
+
+
+#: Height fields (one turned, one high up), boxes about the overhead height and an infinite
+#: plane.
+HEIGHTS_XML = """
+<mujoco>
+  <asset>
+    <hfield name="bumps" nrow="3" ncol="4" size="1 0.5 0.2 0.05"
+            elevation="0 0.5 1 0.25  0.75 0 0.5 1  1 0.25 0 0.5"/>
+  </asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="bumps" pos="2 1 0.3" euler="0 0 90"/>
+    <geom name="loft" type="hfield" hfield="bumps" pos="0 0 1.62"/>
+    <geom name="wall" type="box" size="1 0.05 0.9" pos="0 3 1.0"/>
+    <geom name="beam" type="box" size="0.1 1 0.05" pos="0 -3 2.0" euler="90 0 0"/>
+    <geom name="board" type="box" size="1 1 0.05" pos="0 -5 1.6"/>
+    <geom name="sea" type="plane" size="0 0 1" pos="0 0 -1"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _heights_world():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(HEIGHTS_XML)
+    return model, world_geoms(model)
+
+
+def test_a_height_field_is_drawn_where_mujoco_collides_with_it():
+    import mujoco
+
+    model, (geoms, positions, quaternions) = _heights_world()
+    archetypes = geom_archetypes(model, geoms, positions, quaternions)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    hit = np.array([-1], dtype=np.int32)
+    for geom in (0, 1):
+        mesh = archetypes[f"heightfield_{geom}"]
+        vertices = np.array(mesh.vertex_positions.as_arrow_array().to_pylist())
+        triangles = np.array(mesh.triangle_indices.as_arrow_array().to_pylist())
+        assert vertices.shape == (12, 3) and triangles.shape == (12, 3)  # 3 x 4 samples
+        # Each triangle's centre lies on the surface MuJoCo's ray meets from above.
+        for x, y, z in vertices[triangles].mean(axis=1):
+            distance = mujoco.mj_ray(model, data, np.array([x, y, 5.0]),
+                                     np.array([0.0, 0.0, -1.0]), None, 1, -1, hit)
+            assert hit[0] == geom and 5.0 - distance == pytest.approx(z, abs=1e-6)
+
+
+def test_an_infinite_plane_is_drawn_as_a_wide_thin_box_under_it():
+    import mujoco
+
+    model, (geoms, positions, quaternions) = _heights_world()
+    boxes = geom_archetypes(model, geoms, positions, quaternions)["boxes"]
+    half_sizes = np.array(boxes.half_sizes.as_arrow_array().to_pylist())
+    centres = np.array(boxes.centers.as_arrow_array().to_pylist())
+    # The boxes' batch holds the boxes and the planes, in geom order.
+    box_like = [model.geom(int(geom)).name for geom in geoms if int(model.geom_type[geom]) in (
+        int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_PLANE))]
+    sea = box_like.index("sea")
+    assert half_sizes[sea] == pytest.approx([INFINITE_PLANE_HALF_M, INFINITE_PLANE_HALF_M,
+                                             PLANE_THICKNESS_M / 2.0])
+    assert centres[sea] == pytest.approx([0.0, 0.0, -1.0 - PLANE_THICKNESS_M / 2.0])
+
+
+def test_overhead_geoms_lie_wholly_above_the_overhead_height():
+    # The loft's lowest point is 1.57 m (its base 5 cm under its origin), the board's 1.55 m;
+    # the wall rises from 0.1 m, the beam, upright, from 1.0 m.
+    model, (geoms, positions, quaternions) = _heights_world()
+    assert [model.geom(geom).name for geom in geoms[overhead(model, geoms, positions,
+                                                             quaternions)]] == ["loft", "board"]
 
 
 def test_moving_bodies_are_posed_every_frame_over_geoms_logged_once(world_recording):
