@@ -45,6 +45,22 @@ def test_schedule_push_delivers_its_impulse_on_the_torso_in_its_window(model):
     assert pushed_times[0] == pytest.approx(0.2) and pushed_times[-1] == pytest.approx(0.3 - dt)
 
 
+def test_a_push_may_start_at_0_and_last_one_physics_step(model):
+    # The ends its checks accept: its window [0, dt) is that one step's, and running for no
+    # time does not step.
+    dt = model.opt.timestep
+    sim = RobotSimulation(model, control_period_s=dt)
+    push = sim.schedule_push(0.0, (0.0, 0.01, 0.0), duration_s=dt)
+    assert push.active(0.0) and not push.active(dt)
+    sim.run(0.0)
+    assert sim.time == 0.0
+    lateral_forces = []
+    for _ in range(3):
+        sim.step()
+        lateral_forces.append(sim.data.xfrc_applied[model.body(TORSO_BODY_NAME).id, 1])
+    assert lateral_forces == [pytest.approx(0.01 / dt), 0.0, 0.0]
+
+
 def test_a_sideways_push_moves_the_robot_sideways(model):
     def lateral_momentum(impulse):
         sim = RobotSimulation(model)
