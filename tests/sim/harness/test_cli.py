@@ -344,7 +344,11 @@ def test_a_ray_address_without_ray_is_refused_before_any_work(command, tmp_path,
                                               ("ray://127.0.0.1:1", "nothing answers at"),
                                               ("", "is not an address"),
                                               ("not an address", "is not an address"),
-                                              ("host:99999", "is not an address")])
+                                              ("host:99999", "is not an address"),
+                                              ("127.0.0.1:0", "is not an address"),
+                                              ("127.0.0.1:65536", "is not an address"),
+                                              ("127.0.0.1:65535",
+                                               "nothing answers at 127.0.0.1:65535")])
 def test_a_ray_address_nothing_answers_at_is_refused_before_any_work(command, address, problem,
                                                                      tmp_path, capsys,
                                                                      monkeypatch):

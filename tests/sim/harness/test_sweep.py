@@ -245,6 +245,10 @@ def test_invalid_sweeps_name_the_file_the_key_and_what_is_allowed(changes, key, 
     assert allowed in message.split("; allowed: ")[-1], message
 
 
+def test_a_sweep_may_walk_one_frame_a_run():
+    assert small_spec(max_frames=1).max_frames == 1
+
+
 def test_missing_required_key_and_bad_toml_are_named(tmp_path):
     with pytest.raises(SweepError, match=r"<dict>: noise_levels: missing"):
         sweep_from_dict({"scenarios": ["corridor_straight"], "seeds": [0]})
