@@ -16,7 +16,7 @@ from sim.world.camera import SR4000_INTRINSICS
 from sim.world.humanoid import (CAMERA_NAME, CAMERA_SITE_NAME, MODEL_NAME, humanoid_mjcf,
                                 robot_body_ids)
 from sim.world.walking import RobotSimulation
-from sim.world.assembly import assemble, compile_world, floor_arena
+from sim.world.assembly import assemble, clip_plane_fractions, compile_world, floor_arena
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +107,14 @@ def test_depth_range_covers_the_sr4000(world_model):
     extent = world_model.stat.extent
     assert world_model.vis.map.znear * extent <= 0.1
     assert world_model.vis.map.zfar * extent >= 10.0
+
+
+@pytest.mark.parametrize("extent_m, near_m, far_m", [(0.0, 0.1, 10.0), (2.0, 0.0, 10.0),
+                                                    (2.0, 10.0, 10.0)])
+def test_clip_planes_need_an_extent_and_a_depth_range(extent_m, near_m, far_m):
+    with pytest.raises(ValueError, match="need extent_m > 0 and 0 < near_m < far_m"):
+        clip_plane_fractions(extent_m, near_m, far_m)
+    assert clip_plane_fractions(2.0, 0.1, 10.0) == pytest.approx((0.05, 5.0))
 
 
 def test_standing_height_and_level_forward_camera(world_model):
