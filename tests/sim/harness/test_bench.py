@@ -1,6 +1,9 @@
 """sim.harness.bench (the corpus benchmark's synthetic part: the walks render; the stage shares; its
 options) and the options of the benchmarks/ scripts."""
 
+from pathlib import Path
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -22,32 +25,45 @@ def test_corpus_benchmark_times_both_methods_on_every_generator(capsys):
     assert printed.count("without the check: t2fuzzy") == len(figures["synthetic"])
 
 
-def test_the_corpus_benchmark_times_the_methods_with_and_without_the_check(monkeypatch):
+def test_the_corpus_benchmark_times_the_methods_with_and_without_the_check(monkeypatch, capsys):
     # Each timing tagged with what was timed: method, clock and whether the check ran.
     def tagged(method, scenes, clock=bench.time.perf_counter, checked=True):
         cpu = clock is bench.time.process_time
-        return [{"t2fuzzy": 1.0, "t2fuzzy_paper": 2.0, "sift": 4.0}[method]
+        return [{"t2fuzzy": 2.0, "t2fuzzy_paper": 3.0, "sift": 4.0}[method]
                 + 10.0 * cpu + 100.0 * checked]
 
     monkeypatch.setattr(bench, "frame_ms", tagged)
     monkeypatch.setattr(bench, "simulated_scenes", lambda scenario, n: [])
     figures = bench.t2fuzzy_corpus_benchmark(n_scenes=1, frames_per_scene=1, walk_frames=1)
     for ms in [*figures["synthetic"].values(), *figures["walking"].values()]:
-        assert ms["t2fuzzy"] == 101.0 and ms["t2fuzzy_cpu"] == 111.0
-        assert ms["t2fuzzy_own"] == 1.0 and ms["t2fuzzy_paper_own"] == 2.0
+        assert ms["t2fuzzy"] == 102.0 and ms["t2fuzzy_cpu"] == 112.0
+        assert ms["t2fuzzy_own"] == 2.0 and ms["t2fuzzy_paper_own"] == 3.0
     for ms in figures["synthetic"].values():
         assert ms["sift"] == 104.0 and ms["sift_cpu"] == 114.0 and ms["sift_own"] == 4.0
+    printed = capsys.readouterr().out
+    assert printed.count("sift / t2fuzzy  1.02 ( 1.02)") == len(figures["synthetic"])
+    assert printed.count("sift / t2fuzzy  2.00") == len(figures["synthetic"])
     markdown = bench.bench_markdown({
         "date": "d", "machine": "m", "load": "l", "quick": False,
-        "stabilizer_ms_synthetic": {}, "stabilizer_ms_simulated": {},
-        "stabilizer_ms_synthetic_unchecked": {}, "stabilizer_ms_simulated_unchecked": {},
-        "physics_realtime_factor": 1.0, "render_tof_fps": 1.0, "pipeline_realtime_factor": {},
-        "record_realtime_factor": 1.0, "sequence_mb": 1.0,
-        "rescore_t2fuzzy_realtime_factor": 1.0, "rescore_t2fuzzy_cpu_realtime_factor": 1.0,
-        "score_workers1_s": 2.0, "score_workers2_s": 1.0, "t2fuzzy_corpus": figures})
-    assert "| clutter | 101.00 (111.00) | 104.00 (114.00) | 1.03 | 1.00 | 2.00 | 4.00 | 4.00 |" \
+        "stabilizer_ms_synthetic": {"t2fuzzy": 4.0, "sift": 6.0},
+        "stabilizer_ms_simulated": {"t2fuzzy": 5.0, "sift": 2.5},
+        "stabilizer_ms_synthetic_unchecked": {"t2fuzzy": 2.0, "sift": 3.0},
+        "stabilizer_ms_simulated_unchecked": {"t2fuzzy": 2.5, "sift": 1.5},
+        "physics_realtime_factor": 50.0, "render_tof_fps": 160.0,
+        "pipeline_realtime_factor": {"every method": 1.25},
+        "record_realtime_factor": 2.5, "sequence_mb": 47.0,
+        "rescore_t2fuzzy_realtime_factor": 3.5, "rescore_t2fuzzy_cpu_realtime_factor": 3.25,
+        "score_workers1_s": 30.0, "score_workers2_s": 15.0, "t2fuzzy_corpus": figures})
+    # Each ratio is to t2fuzzy (the first table) or of SIFT to t2fuzzy (the corpus).
+    assert "| t2fuzzy | 4.00 | 2.00 | 1.00 | 5.00 | 2.50 | 1.00 |" in markdown
+    assert "| sift | 6.00 | 3.00 | 1.50 | 2.50 | 1.50 | 0.50 |" in markdown
+    assert "| `egostab run` of the default scenario, every method | 1.25x real time |" in markdown
+    assert "| walking physics + control, no rendering | 50.0x real time |" in markdown
+    assert "a sequence of 47 MB" in markdown and "| 3.5x real time |" in markdown
+    assert "| 2.00x faster (30.0 s / 15.0 s) |" in markdown
+    assert "| clutter | 102.00 (112.00) | 104.00 (114.00) | 1.02 | 2.00 | 3.00 | 4.00 | 2.00 |" \
         in markdown
-    assert "| walking, corridor | 101.00 (111.00) | | | 1.00 | 2.00 | | |" in markdown
+    assert "| walking, corridor | 102.00 (112.00) | | | 2.00 | 3.00 | | |" in markdown
 
 
 def test_the_walking_scenarios_cover_every_scene():
@@ -61,6 +77,59 @@ def test_time_method_uses_the_clock_it_is_given():
     scenes = [(np.zeros((144, 176), np.uint8), [np.zeros((144, 176), np.uint8)] * 3)]
     # Each estimate spans one tick of this clock: 1 ms per frame whatever the work took.
     assert bench.time_method("t2fuzzy", scenes, clock=lambda: next(ticks) * 1e-3) == 1.0
+
+
+class JobClock:
+    """A clock that only the fake jobs move, each by its own duration (seconds)."""
+
+    def __init__(self, durations):
+        self.now, self.durations = 100.0, durations
+
+    def __call__(self):
+        return self.now
+
+    def job(self, name):
+        self.now += self.durations[name]
+
+
+def test_rescoring_reports_the_sequences_seconds_per_second_of_its_jobs(monkeypatch, capsys):
+    # A 10 s sequence of 2 MB recorded in 4 s; t2fuzzy re-scored in 5 s, then 4 s, then 8 s
+    # of CPU; every method with one worker in 30 and 28 s, with two in 15 and 16 s.
+    import sim.harness.runner
+    import sim.harness.score
+
+    clock = JobClock({"record": 4.0, "t2fuzzy1": 5.0, "t2fuzzy2": 4.0, "t2fuzzy_cpu": 8.0,
+                      "workers1_0": 30.0, "workers2_0": 15.0, "workers1_1": 28.0,
+                      "workers2_1": 16.0})
+
+    def record(config):
+        clock.job("record")
+        Path(config.out_dir).mkdir(parents=True)
+        (Path(config.out_dir) / "frames.bin").write_bytes(bytes(2_000_000))
+        return {"ended": "complete", "sim_time_s": 10.0}
+
+    def score(config):
+        clock.job(Path(config.out_dir).name)
+        return {"status": "complete"}
+
+    monkeypatch.setattr(sim.harness.runner, "record", record)
+    monkeypatch.setattr(sim.harness.score, "score", score)
+    monkeypatch.setattr(bench, "time", SimpleNamespace(perf_counter=clock, process_time=clock))
+    assert bench.rescoring(2) == pytest.approx({
+        "record_realtime_factor": 2.5, "sequence_mb": 2.0,
+        "rescore_t2fuzzy_realtime_factor": 2.5, "rescore_t2fuzzy_cpu_realtime_factor": 1.25,
+        "score_workers1_s": 28.0, "score_workers2_s": 15.0})
+    assert "--workers 1 28.0 s, --workers 2 15.0 s (1.87x)" in capsys.readouterr().out
+
+
+def test_the_physics_and_render_rates_are_per_second_of_their_clock(monkeypatch):
+    ticks = iter([10.0, 14.0])
+    assert bench.walking_realtime_factor(0.2, clock=lambda: next(ticks)) == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="sim_seconds must be > 0"):
+        bench.walking_realtime_factor(0.0)
+    ticks = iter([10.0, 10.5])
+    monkeypatch.setattr(bench, "time", SimpleNamespace(perf_counter=lambda: next(ticks)))
+    assert bench.render_fps(2) == pytest.approx(4.0)
 
 
 def test_a_timed_job_cut_short_stops_the_benchmark_with_its_signal(monkeypatch):
