@@ -72,6 +72,32 @@ def test_the_walking_scenarios_cover_every_scene():
     assert set(bench.WALK_SCENARIOS) == set(SCENES)
 
 
+def test_walking_frames_are_grouped_by_gait_cycle_after_the_standing_start(monkeypatch):
+    # A fake walk at the default scenario's 30 frames/s whose gait cycle changes every 10
+    # frames: the first 1.5 s (45 frames) are left out, then 16 frames (45-60) are kept by
+    # cycle; frame 60, alone in its cycle, is no pair to time.
+    import contextlib
+
+    import sim.harness.runner
+
+    robot = SimpleNamespace(gait_cycle=0)
+    walked = []
+
+    def walk_frames(loaded, robot_, sensor, n_frames):
+        walked.append(n_frames)
+        for index in range(n_frames):
+            robot.gait_cycle = index // 10
+            yield SimpleNamespace(index=index, disparity8=index)
+
+    monkeypatch.setattr(sim.harness.runner, "scenario_robot", lambda loaded: robot)
+    monkeypatch.setattr(sim.harness.runner, "open_sensor",
+                        lambda loaded, robot_: contextlib.nullcontext())
+    monkeypatch.setattr(sim.harness.runner, "walk_frames", walk_frames)
+    assert bench.simulated_scenes(n_frames=16, skip_s=1.5) == [
+        (45, [46, 47, 48, 49]), (50, [51, 52, 53, 54, 55, 56, 57, 58, 59])]
+    assert walked == [61]
+
+
 def test_time_method_uses_the_clock_it_is_given():
     ticks = iter(range(1000))
     scenes = [(np.zeros((144, 176), np.uint8), [np.zeros((144, 176), np.uint8)] * 3)]
