@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -362,6 +363,34 @@ def test_a_ray_address_nothing_answers_at_is_refused_before_any_work(command, ad
     message = _one_line_error(capsys, command[0])
     assert problem in message and "accepted: 'auto' or 'local', or the HOST:PORT" in message
     assert not (tmp_path / "out").exists()
+
+
+def test_rays_own_address_words_and_a_bracketed_ipv6_host_are_taken():
+    from sim.harness.runset import check_ray_address, command_line_backend
+
+    assert command_line_backend(True, "auto", None) == command_line_backend(True, "local", 2) \
+        == "ray"
+    with pytest.raises(ValueError) as refusal:  # the brackets are the address's, not the host's
+        check_ray_address("[::1]:1")
+    assert "nothing answers at ::1:1 (" in str(refusal.value)
+
+
+@pytest.mark.parametrize("failed, status", [([], 0), (["corridor__seed1"], 1)])
+def test_a_sweep_or_suite_prints_its_tables_and_fails_with_a_failed_run(failed, status, tmp_path,
+                                                                       capsys):
+    from sim.harness.runset import run_on_command_line
+
+    def run(spec, out_dir, **options):
+        return SimpleNamespace(markdown="| the table |", failed=[
+            SimpleNamespace(run=SimpleNamespace(name=name), error="RuntimeError: boom")
+            for name in failed])
+
+    folder = tmp_path / "out"  # made by the command before
+    folder.mkdir()
+    assert run_on_command_line("sweep", run, None, folder, "local", 1, None) == status
+    out, err = capsys.readouterr()
+    assert out == f"| the table |\nsweep folder: {folder}\n"
+    assert err == "".join(f"run failed: {name}: RuntimeError: boom\n" for name in failed)
 
 
 def test_an_oversized_image_is_refused_or_resized_on_request(tmp_path, capsys):

@@ -249,6 +249,12 @@ def test_a_sweep_may_walk_one_frame_a_run():
     assert small_spec(max_frames=1).max_frames == 1
 
 
+def test_an_unknown_scenario_name_is_refused_with_the_shipped_ones():
+    with pytest.raises(SweepError) as info:
+        small_spec(scenarios=["no_such_scenario"])
+    assert "(shipped: corridor_straight, " in str(info.value)
+
+
 def test_missing_required_key_and_bad_toml_are_named(tmp_path):
     with pytest.raises(SweepError, match=r"<dict>: noise_levels: missing"):
         sweep_from_dict({"scenarios": ["corridor_straight"], "seeds": [0]})
