@@ -347,6 +347,7 @@ def test_a_ray_address_without_ray_is_refused_before_any_work(command, tmp_path,
                                               ("not an address", "is not an address"),
                                               ("host:99999", "is not an address"),
                                               ("127.0.0.1:0", "is not an address"),
+                                              ("127.0.0.1:\uff11", "is not an address"),
                                               ("127.0.0.1:65536", "is not an address"),
                                               ("127.0.0.1:65535",
                                                "nothing answers at 127.0.0.1:65535")])
