@@ -209,10 +209,18 @@ def test_the_readme_shows_the_rendered_picture():
     assert render_robot.DEFAULT_PICTURE_PATH.is_file()
 
 
-@pytest.mark.parametrize("bad", [{"width": 0}, {"height": 4096}, {"distance_m": 0.0}])
+@pytest.mark.parametrize("bad", [{"width": 0}, {"height": 0},
+                                 {"width": render_robot.MAX_SIDE_PX + 1},
+                                 {"height": render_robot.MAX_SIDE_PX + 1}, {"distance_m": 0.0}])
 def test_render_robot_rejects_bad_sizes(bad):
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=f"{next(iter(bad))}"):
         render_robot.render_humanoid(**bad)
+
+
+@pytest.mark.parametrize("width, height", [(1, 1), (render_robot.MAX_SIDE_PX, 1),
+                                           (1, render_robot.MAX_SIDE_PX)])
+def test_render_robot_draws_pictures_of_every_size_it_accepts(width, height):
+    assert render_robot.render_humanoid(width=width, height=height).shape == (height, width, 3)
 
 
 def test_the_readme_names_each_joints_servo_class_as_the_model_does():
