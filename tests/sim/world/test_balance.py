@@ -91,6 +91,14 @@ def test_bad_pushes_are_value_errors(model, args, match):
     assert sim.pushes == []
 
 
+def test_a_push_trial_measures_the_path_from_the_robots_own_start():
+    # Started away from the origin and facing +y, an unpushed walk is back on its path: its
+    # heading and lateral offset are measured from its start pose, not the world's origin.
+    trial = push_trial(compile_world(assemble(start_xy=(1.0, 2.0), start_yaw_deg=90.0)),
+                       "default", 0.0, 0.0, after_s=1.0)
+    assert trial.recovered, trial
+
+
 # -- push recovery ----------------------------------------------------------------------------
 # Seeds set the push's moment (push_recovery.push_trial): seeds 0 and 1 push during a step on
 # the left foot, seeds 2 and 3 during a step on the right foot, so that each sideways direction
