@@ -135,9 +135,14 @@ class WorkerPool:
         if self._environment is None:
             return
         processes = list((self._executor._processes or {}).values())  # no public handle
+        manager = self._executor._executor_manager_thread
         self._executor.shutdown(wait=False, cancel_futures=True)
         for process in processes:
             process.terminate()
+        # The executor's own thread reaps the workers too: a join here can return on the
+        # other's reaping before the exit status is stored, and the worker still looks alive.
+        if manager is not None:
+            manager.join()
         for process in processes:
             process.join()
         self._environment.__exit__(None, None, None)

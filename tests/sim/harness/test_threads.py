@@ -67,6 +67,17 @@ def test_a_pool_ends_its_workers_and_gives_the_environment_back_when_it_ends(mon
         os.kill(worker, 0)
 
 
+def test_no_worker_of_an_ended_pool_still_counts_as_running():
+    # The executor's thread reaps the workers too; before the pool waited for it, a worker
+    # still looked alive right after the pool ended in about one pool of six.
+    import multiprocessing
+
+    for _ in range(40):
+        with single_thread_pool(2) as pool:
+            assert list(pool.map(abs, range(-4, 0))) == [4, 3, 2, 1]
+        assert multiprocessing.active_children() == []
+
+
 @pytest.mark.parametrize("workers", [0, -1, True, 2.0, "2"])
 def test_a_worker_count_that_is_no_whole_number_from_1_is_refused(workers):
     with pytest.raises(ValueError, match=r"workers \S+: accepted: an integer from 1 to \d+"):
