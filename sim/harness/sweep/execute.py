@@ -32,7 +32,8 @@ from sim.harness.sweep.plan import (DONE_STATUSES, RunOutcome, SweepRun, complet
 from sim.harness.sweep.spec import SweepSpec
 from sim.harness.sweep.tables import SweepResult, write_sweep_outputs
 from sim.harness.threads import (check_local_workers, exit_with_parent, limit_threads,
-                                 single_thread_environment_vars, worker_count)
+                                 single_thread_environment, single_thread_environment_vars,
+                                 worker_count)
 from sim.harness.validation import is_int
 
 BACKENDS = ("local", "ray")
@@ -183,7 +184,8 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                initializer=_start_worker, initargs=(stopping, ctrl_c))
     try:
-        with children_start_deaf_to_ctrl_c():  # the submits start the workers
+        # The submits start the workers, which read their BLAS threads as numpy loads.
+        with children_start_deaf_to_ctrl_c(), single_thread_environment():
             futures = {pool.submit(_run_unless_stopped, run_fn, sweep_run.config): sweep_run
                        for sweep_run in pending}
         remaining = set(futures)
@@ -261,10 +263,10 @@ def _run_unless_stopped(run_fn: Callable[[RunConfig], dict], config: RunConfig) 
 
 def _run_as_ray_task(run_fn: Callable[[RunConfig], dict], config: RunConfig) -> dict:
     """``run_fn(config)`` in a Ray worker, on one OpenCV thread (the BLAS and OpenMP ones come
-    from the worker's environment, set as Ray starts it), and which a cancel can interrupt: Ray
-    cancels a running task by a Ctrl-C of its worker, which a worker started with Ctrl-C
-    ignored (a sweep started in the background: ``&``, ``nohup``, a batch job) never felt, so
-    its run went on to the end."""
+    from the task's ``runtime_env``, set as Ray starts the worker), and which a cancel can
+    interrupt: Ray cancels a running task by a Ctrl-C of its worker, which a worker started
+    with Ctrl-C ignored (a sweep started in the background: ``&``, ``nohup``, a batch job)
+    never felt, so its run went on to the end."""
     limit_threads()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -289,12 +291,12 @@ def _run_ray(pending: Sequence[SweepRun], run_fn, workers: int | None,
     started_here = not ray.is_initialized()
     if started_here:
         with signal_handlers_kept():
-            ray.init(address=ray_address, include_dashboard=False,
-                     runtime_env={"env_vars": {**single_thread_environment_vars(),
-                                               **cpu_paths_in_effect()}})
+            ray.init(address=ray_address, include_dashboard=False)
     in_flight: dict[Any, SweepRun] = {}
     try:
-        remote_run = ray.remote(num_cpus=1, max_retries=0)(_run_as_ray_task)
+        # The task's own environment, not the job's: a caller may have started Ray without it.
+        remote_run = ray.remote(num_cpus=1, max_retries=0, runtime_env={"env_vars": {
+            **single_thread_environment_vars(), **cpu_paths_in_effect()}})(_run_as_ray_task)
         queue = list(pending)
         while queue or in_flight:
             while queue and (workers is None or len(in_flight) < workers):

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from sim.harness.cpu_paths import CPU_PATH_VARIABLES, cpu_paths_in_effect
 from sim.harness.report import METRICS_JSON, read_metrics, write_run_outputs
 from sim.harness.runner import RunConfig
 from sim.harness.scenario import SCENARIOS_DIR
@@ -27,6 +28,7 @@ from sim.harness.sweep import (COLUMNS, DEFAULT_NOISE_KEY, ERROR_COLUMNS, RunOut
                                table_markdown)
 from sim.harness.sweep import execute as sweep_execute
 from sim.harness.sweep.plan import planned_scenario
+from sim.harness.threads import THREAD_VARIABLES
 
 EXAMPLE_SWEEP = SCENARIOS_DIR / "sweeps" / "noise_sweep.toml"
 METHODS = ("t2fuzzy", "sift")
@@ -67,7 +69,8 @@ def fake_run(config: RunConfig) -> dict:
                       records=records, summary=summarize(records),
                       meta={"seed": config.seed, "max_frames": config.max_frames,
                             "parent_mark": PARENT_MARK, "ctrl_c": _ctrl_c_heard(),
-                            "opencv_threads": _opencv_threads()},
+                            "threads": _threads(),
+                            "cpu_paths": cpu_paths_in_effect(_environment_at_start())},
                       status="complete", plots=False)
     (run_dir / INTERVAL_LOG).write_text(f"{started} {time.time()}")
     return read_metrics(run_dir)
@@ -79,10 +82,21 @@ def _ctrl_c_heard() -> bool:
             and signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, []))
 
 
-def _opencv_threads() -> int:
-    import cv2
+def _environment_at_start() -> dict[str, str]:
+    """This process's environment as it started (numpy and OpenCV read it as they load; the
+    process may have set more since: importing ``sim`` pins the CPU paths)."""
+    entries = Path("/proc/self/environ").read_bytes().split(b"\0")
+    return dict(entry.decode().split("=", 1) for entry in entries if b"=" in entry)
 
-    return cv2.getNumThreads()
+
+def _threads() -> list[int]:
+    """This process's OpenCV threads and its BLAS libraries' largest thread count."""
+    import cv2
+    import threadpoolctl
+
+    blas = [pool["num_threads"] for pool in threadpoolctl.threadpool_info()
+            if pool["user_api"] == "blas"]
+    return [cv2.getNumThreads(), max(blas)]
 
 
 def failing_run(config: RunConfig) -> dict:
@@ -478,7 +492,7 @@ def test_local_pool_starts_workers_with_spawn(tmp_path, monkeypatch, sweep_hears
         signal.signal(signal.SIGINT, previous)
     for outcome in result.outcomes:
         assert outcome.metrics["run"]["parent_mark"] == "module default"  # not inherited
-        assert outcome.metrics["run"]["opencv_threads"] == 1  # one thread per process
+        assert outcome.metrics["run"]["threads"] == [1, 1]  # one thread per process
         # Started deaf to Ctrl-C (no traceback of theirs while they import), they hear it
         # when they run if the sweep does: an interrupted sweep's runs end with complete files.
         assert outcome.metrics["run"]["ctrl_c"] is sweep_hears_ctrl_c
@@ -543,10 +557,17 @@ def test_a_ray_task_can_be_cancelled_when_the_sweep_ignores_ctrl_c():
     assert handler is signal.default_int_handler
 
 
-def test_ray_backend_on_a_local_instance(tmp_path):
+def test_ray_backend_on_a_local_instance(tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
     spec = small_spec(seeds=[0, 1], noise_levels=[1.0])
+    # Ray started by the caller, its workers with neither the single-thread environment nor
+    # the CPU paths (as on a cluster's nodes, started by `ray start`).
+    pins = cpu_paths_in_effect()
+    for name in (*THREAD_VARIABLES, *CPU_PATH_VARIABLES):
+        monkeypatch.delenv(name, raising=False)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    for name, value in pins.items():
+        monkeypatch.setenv(name, value)
     try:
         result = run_sweep(spec, tmp_path, backend="ray", run_fn=failing_run)
         assert {o.run.name for o in result.failed} == {
@@ -560,7 +581,8 @@ def test_ray_backend_on_a_local_instance(tmp_path):
                                      .read_text().split()))
                            for o in resumed.outcomes if not o.skipped)
     assert first[1] <= second[0]
-    assert {o.metrics["run"]["opencv_threads"] for o in resumed.outcomes} == {1}
+    assert {tuple(o.metrics["run"]["threads"]) for o in resumed.outcomes} == {(1, 1)}
+    assert all(o.metrics["run"]["cpu_paths"] == pins for o in resumed.outcomes)
     assert sorted(o.run.name for o in resumed.outcomes if not o.skipped) == sorted(
         o.run.name for o in result.failed)
     plan = plan_sweep(spec, tmp_path)
