@@ -205,7 +205,7 @@ def _run_pool(pending: Sequence[SweepRun], run_fn, workers: int,
         # between runs outlives them). Passed on after a Ctrl-C, a signal would reach each run
         # a second time (held through its final write, then raised from it).
         if not isinstance(error, KeyboardInterrupt) or isinstance(error, Interrupted):
-            for worker in multiprocessing.active_children():
+            for worker in list((pool._processes or {}).values()):  # no public handle
                 worker.terminate()
         raise
     finally:  # also for an abandoned generator: drop queued runs, let started ones end

@@ -612,6 +612,30 @@ def test_a_folder_in_use_by_another_sweep_or_suite_is_refused(tmp_path, capsys):
     assert not (tmp_path / LOCK_FILE).exists()
 
 
+def test_a_sweep_that_stops_on_an_error_ends_its_own_workers_and_no_other_process(
+        tmp_path, monkeypatch):
+    # It ended every child process of the caller (multiprocessing.active_children()).
+    import multiprocessing
+
+    bystander = multiprocessing.get_context("spawn").Process(target=time.sleep, args=(60,))
+    bystander.start()
+
+    def failing_consumer(outcomes, total, progress, label):
+        for _ in outcomes:
+            raise RuntimeError("the consumer failed")
+        yield
+
+    monkeypatch.setattr(sweep_execute, "_with_progress", failing_consumer)
+    try:
+        with pytest.raises(RuntimeError, match="the consumer failed"):
+            run_sweep(small_spec(), tmp_path, workers=2, run_fn=fake_run)
+        assert bystander.is_alive()
+    finally:
+        bystander.terminate()
+        bystander.join()
+    assert multiprocessing.active_children() == []
+
+
 def test_a_second_stop_during_the_pools_shutdown_still_waits_for_its_workers():
     # timeout and batch systems signal the process, then its group: the second stop landed in
     # the shutdown, which then never told the workers to end, and the exit waited for them
