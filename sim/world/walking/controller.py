@@ -26,7 +26,7 @@ from sim.world.humanoid import LEG_JOINTS, MODEL_NAME, SIDES
 from sim.world.walking.capture_point import CapturePointStepper
 from sim.world.walking.counterbalance import Counterbalance
 from sim.world.walking.floor_estimate import FloorEstimate
-from sim.world.walking.footsteps import SIDE_SIGN, FootstepPlanner, Pose2D
+from sim.world.walking.footsteps import SIDE_SIGN, FootstepPlanner, Pose2D, mid_pose
 from sim.world.walking.gait import GaitParams
 from sim.world.walking.leg_ik import LegIK, rot_y, rot_z
 from sim.world.walking.preview import ZmpPreviewController
@@ -191,8 +191,15 @@ class WalkingController:
         gyro = data.sensordata[self._gyro_adr:self._gyro_adr + 3]
         self._heading_goal += self._yaw_rate * self.control_period_s
         torso_mat = data.xmat[self._torso_id]
-        heading_error = math.remainder(
-            self._heading_goal - math.atan2(torso_mat[3], torso_mat[0]), 2.0 * math.pi)
+        # A correction turns only steps planned after it, up to a preview horizon ahead: compare
+        # the goal at the plan's end with the heading the plan will reach from the measured one
+        # (a Smith predictor), or the correction lags by that horizon and the heading swings.
+        planner = self.planner
+        planned_now = mid_pose(*planner.feet_now(now_s)[0]).yaw
+        plan_end_s = planner.steps[-1].end_s if planner.steps else now_s
+        predicted = math.atan2(torso_mat[3], torso_mat[0]) + planner.centre.yaw - planned_now
+        goal_at_plan_end = self._heading_goal + self._yaw_rate * max(0.0, plan_end_s - now_s)
+        heading_error = math.remainder(goal_at_plan_end - predicted, 2.0 * math.pi)
         self.planner.turn_correction_rad = _clip(self._heading_gain * heading_error,
                                                  self._max_heading_correction)
         self.planner.update(now_s, self._preview_times[-1])

@@ -73,7 +73,8 @@ class Step:
         return 1 - self.support_side
 
 
-def _mid(a: Pose2D, b: Pose2D) -> Pose2D:
+def mid_pose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """The pose half-way between ``a`` and ``b``, its yaw on the shorter arc between theirs."""
     yaw = b.yaw + math.remainder(a.yaw - b.yaw, 2 * math.pi) / 2.0
     return Pose2D((a.x + b.x) / 2.0, (a.y + b.y) / 2.0, yaw)
 
@@ -196,7 +197,7 @@ class FootstepPlanner:
         swing_to = centre.moved(0.0, SIDE_SIGN[swing] * self.step_width_m / 2)
         support_pose = self.feet[support]
         zmp_on = support_pose.moved(0.0, SIDE_SIGN[support] * self.lateral_sway_m).xy
-        zmp_from = _mid(*self.feet).xy if previous is None else previous.zmp_on
+        zmp_from = mid_pose(*self.feet).xy if previous is None else previous.zmp_on
         feet_after = (swing_to, support_pose) if swing == LEFT else (support_pose, swing_to)
         double = self.start_delay_s if previous is None else self.double_support_s
         return Step(start_s, double, self.single_support_s, support, zmp_from, zmp_on,
@@ -289,7 +290,7 @@ class FootstepPlanner:
                        (step.start_s + step.double_support_s, step.zmp_on),
                        (step.end_s, step.zmp_on)]
         last_s = points[-1][0] if points else 0.0
-        points.append((last_s + self.settle_s, _mid(*self.feet).xy))
+        points.append((last_s + self.settle_s, mid_pose(*self.feet).xy))
         return (np.array([p[0] for p in points]), np.array([p[1][0] for p in points]),
                 np.array([p[1][1] for p in points]))
 

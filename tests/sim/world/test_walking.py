@@ -17,7 +17,7 @@ from sim.world.walking import (GAIT_PRESETS, FallEvent, GaitParams, RobotSimulat
 from sim.world.walking.camera_swing import measure_camera_swing, relative_camera_angles
 from sim.world.walking.falls import FallDetector
 from sim.world.walking.floor_estimate import FloorEstimate
-from sim.world.walking.footsteps import FootstepPlanner, Pose2D, _mid
+from sim.world.walking.footsteps import FootstepPlanner, Pose2D, mid_pose
 from sim.world.walking.gait import resolve_gait
 from sim.world.walking.leg_ik import LegIK, rot_x, rot_y, rot_z
 from sim.world.walking.preview import ZmpPreviewController
@@ -362,20 +362,37 @@ def test_the_torso_faces_the_mean_heading_of_its_feet_while_turning():
 @pytest.mark.parametrize("start_yaw_deg", [0.0, 120.0])
 def test_the_heading_feedback_steers_to_the_commanded_heading(start_yaw_deg):
     """The heading goal is the start heading plus the integral of the yaw-rate commands: 3 s
-    at 24 deg/s then walking straight on, the torso's heading swings about start + 72 deg
-    (from 58 to 95 deg, docs/walking.md "Known limits") and averages within 3 deg of it over
-    the walk's last 10 s, whatever the start heading."""
+    at 24 deg/s then walking straight on, the torso's heading settles at start + 72 deg and
+    stays within 2 deg of it from 10 s on (71-73 deg here), whatever the start heading. A
+    feedback that compared the goal with the heading now, while its corrections reach only the
+    steps planned after it, swung between 68 and 77 deg still 18-28 s later."""
     sim = RobotSimulation(compile_world(assemble(start_yaw_deg=start_yaw_deg)), seed=0)
     sim.command(0.0, 24.0)
     sim.run(3.0)
     sim.command(sim.gait.max_forward_speed_mps, 0.0)
-    sim.run(18.0)
+    sim.run(7.0)
     turned = []
     while sim.time < 31.0:
         sim.step()
         turned.append(heading_change(sim, math.radians(start_yaw_deg)))
     assert sim.fall is None
-    assert np.mean(turned) == pytest.approx(72.0, abs=3.0)
+    assert max(abs(heading - 72.0) for heading in turned) < 2.0
+
+
+@pytest.mark.parametrize("gait", ["default", "paper_like"])
+def test_a_timed_turn_in_place_ends_near_the_commanded_angle(model, gait):
+    """24 deg/s for the time of 90 deg, then a stop: the robot ends within 3 deg of 90 deg
+    (91.1 and 88.9 here; 99.5 and 96.5 when the feedback compared the goal with the heading
+    now, docs/walking.md "Known limits")."""
+    sim = RobotSimulation(model, gait=gait, seed=0)
+    sim.run(1.0)
+    start = sim.torso_pose()[1]
+    sim.command(0.0, 24.0)
+    sim.run(90.0 / 24.0)
+    sim.command(0.0, 0.0)
+    sim.run(3.0)
+    assert sim.fall is None
+    assert heading_change(sim, start) == pytest.approx(90.0, abs=3.0)
 
 
 def test_planner_turns_in_place_and_stops_feet_side_by_side():
@@ -401,8 +418,8 @@ def test_planner_turns_in_place_and_stops_feet_side_by_side():
     (10.0, 30.0, 20.0), (30.0, 10.0, 20.0), (170.0, -170.0, 180.0), (-170.0, 170.0, 180.0)])
 def test_the_middle_of_two_feet_faces_half_way_the_short_way_round(yaw_a_deg, yaw_b_deg,
                                                                    middle_deg):
-    middle = _mid(Pose2D(0.0, 0.1, math.radians(yaw_a_deg)),
-                  Pose2D(0.2, -0.1, math.radians(yaw_b_deg)))
+    middle = mid_pose(Pose2D(0.0, 0.1, math.radians(yaw_a_deg)),
+                      Pose2D(0.2, -0.1, math.radians(yaw_b_deg)))
     assert (middle.x, middle.y) == pytest.approx((0.1, 0.0))
     turn = math.remainder(middle.yaw - math.radians(middle_deg), 2 * math.pi)
     assert turn == pytest.approx(0.0, abs=1e-12)
