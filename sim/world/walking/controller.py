@@ -44,8 +44,9 @@ class WalkingController:
         gait: gait parameters.
         control_period_s: period of the control loop (a multiple of the physics timestep).
         preview_s: ZMP preview horizon.
-        heading_gain: fraction of the heading error (commanded heading, the integral of the
-            yaw-rate commands, minus the torso's measured heading) turned back per step; it
+        heading_gain: fraction of the heading error turned back per step: the commanded
+            heading (the integral of the yaw-rate commands) at the end of the planned steps
+            less the heading the plan will reach there from the torso's measured heading. It
             corrects the slow yaw drift of the feet slipping on the floor.
         max_heading_correction_deg: limit of that correction per step.
         step_adjustment: a CapturePointStepper (push recovery: moves the step under way from
