@@ -95,12 +95,19 @@ def largest_survived_impulse(model: mujoco.MjModel, gait: GaitParams | str, dire
                              **trial_kwargs) -> float:
     """Largest impulse (N s, to ``resolution_ns``) survived with this seed, by bisection on
     [0, ``upper_ns``]; survival is assumed monotonic in the impulse."""
+    for name, value in (("upper_ns", upper_ns), ("resolution_ns", resolution_ns)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float))
+                                           and math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{name} {value!r}: accepted: a finite number of N s above 0")
+
     def survives(impulse):
         return not push_trial(model, gait, impulse, direction_deg, seed, **trial_kwargs).fell
     if survives(upper_ns):
         return upper_ns
     low, high = 0.0, upper_ns
-    while high - low > resolution_ns:
+    # Each trial halves the interval: a fixed count of them, until it is no wider than the
+    # resolution.
+    for _ in range(max(0, math.ceil(math.log2(upper_ns / resolution_ns)))):
         middle = (low + high) / 2.0
         low, high = (middle, high) if survives(middle) else (low, middle)
     return low

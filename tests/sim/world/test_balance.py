@@ -532,6 +532,32 @@ def test_the_largest_survived_impulse_is_bisected_to_the_resolution(monkeypatch)
     assert asked == [1.0]
 
 
+@pytest.mark.parametrize("option", ["upper_ns", "resolution_ns"])
+@pytest.mark.parametrize("value", [0.0, -0.125, math.nan, math.inf, True])
+def test_a_bisection_with_no_interval_or_no_resolution_is_refused(monkeypatch, option, value):
+    # A resolution of 0 bisected for ever.
+    monkeypatch.setattr(push_recovery, "push_trial", lambda *args, **options: pytest.fail(
+        "a trial ran"))
+    with pytest.raises(ValueError, match=f"{option} .*: accepted: a finite number of N s above 0"):
+        push_recovery.largest_survived_impulse(None, "default", 90.0, **{option: value})
+
+
+# 3 N s to 0.1: 1.5, 0.75, 0.375, 0.1875, 0.09375; an interval narrower than the resolution: none.
+@pytest.mark.parametrize("upper_ns, resolution_ns, trials", [(3.0, 0.1, 5), (0.1, 0.25, 0)])
+def test_the_bisection_runs_as_many_trials_as_halve_the_interval_to_the_resolution(
+        monkeypatch, upper_ns, resolution_ns, trials):
+    asked = []
+
+    def trial(model, gait, impulse_ns, direction_deg, seed, **options):
+        asked.append(impulse_ns)
+        return push_recovery.PushTrial(True, 3.4, 0.0, 0.0)  # every push topples it
+
+    monkeypatch.setattr(push_recovery, "push_trial", trial)
+    assert push_recovery.largest_survived_impulse(None, "default", 90.0, upper_ns=upper_ns,
+                                                  resolution_ns=resolution_ns) == 0.0
+    assert len(asked) == 1 + trials  # the upper end, then the halvings
+
+
 def test_the_push_table_gives_the_worst_and_the_best_seed_per_direction(monkeypatch, capsys):
     """``python -m sim.world.walking.push_recovery``'s table (docs/walking.md, "Push
     recovery"), with trials in which seed s survives up to 1 + s / 2 N s pushed left and half as
