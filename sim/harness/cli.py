@@ -158,7 +158,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
     config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
                          estimates=estimates, check_estimates=args.check_estimates,
                          record=not args.no_record, workers=args.workers,
-                         progress=not args.quiet)
+                         max_frames=args.max_frames, progress=not args.quiet)
     out_dir = check_output_path(out)
     metrics = score(config)
     print(terminal_summary(metrics, out_dir))
@@ -312,6 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="processes running the methods, one thread each; 1: this "
                              "process (default: one per core; at most "
                              f"{WORKERS_PER_CORE} per core)")
+    scorer.add_argument("--max-frames", type=POSITIVE_INTEGER, default=None,
+                        help="score only the first N frames (default: every frame)")
     scorer.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     scorer.add_argument("--quiet", action="store_true", help="no progress bar")
     scorer.set_defaults(handler=_cmd_score)

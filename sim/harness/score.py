@@ -57,6 +57,8 @@ class ScoreConfig:
         record: write ``recording.rrd`` if the scenario's ``[recording] enabled`` allows it.
         workers: processes that run the methods (1 = this process; None = one per core,
             or 1 when no method runs).
+        max_frames: score only the sequence's first N frames (None: every frame); as
+            ``run`` with the same ``max_frames``.
         progress: show a progress bar.
     """
 
@@ -67,9 +69,14 @@ class ScoreConfig:
     check_estimates: bool = False
     record: bool = True
     workers: int | None = 1
+    max_frames: int | None = None
     progress: bool = False
 
     def __post_init__(self):
+        from sim.harness.validation import is_int
+
+        if self.max_frames is not None and not (is_int(self.max_frames) and self.max_frames >= 1):
+            raise ValueError(f"--max-frames {self.max_frames!r}: accepted: an integer from 1")
         if self.check_estimates and not self.estimates:
             raise ValueError("--check-estimates: no estimates file to check; accepted: with "
                              "--estimates")
@@ -115,12 +122,13 @@ def score(config: ScoreConfig) -> dict:
                             "estimates_sha256": {name: estimation.sha256 for name, estimation
                                                  in file_methods.items()},
                             "estimates_checked": config.check_estimates,
-                            "workers": workers})
-    with _method_estimations(sequence, methods, workers,
+                            "max_frames": config.max_frames, "workers": workers})
+    frames = SequenceFrames(sequence, config.max_frames)
+    with _method_estimations(sequence, frames.n_frames, methods, workers,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
         scoring.plot_pool = pool and pool.processes
-        return score_frames(SequenceFrames(sequence, decoded=pool and pool.frame), scoring,
-                            {**estimations, **file_methods}, config.progress)
+        frames.decoded = pool and pool.frame
+        return score_frames(frames, scoring, {**estimations, **file_methods}, config.progress)
 
 
 class SequenceFrames:
@@ -130,9 +138,9 @@ class SequenceFrames:
     workers, which read every frame anyway) without its exact depth, with its ground truth.
     """
 
-    def __init__(self, sequence, decoded=None):
+    def __init__(self, sequence, max_frames: int | None = None, decoded=None):
         self.sequence, self.decoded = sequence, decoded
-        self.n_frames = sequence.n_frames
+        self.n_frames = min(sequence.n_frames, max_frames or sequence.n_frames)
         self.intrinsics = sequence.intrinsics
         self._done = 0
 
@@ -145,11 +153,12 @@ class SequenceFrames:
     @property
     def fall(self):
         """The recording's fall, once its last frame has been given."""
-        return self.sequence.fall if self._done == self.n_frames else None
+        return self.sequence.fall if self._done == self.sequence.n_frames else None
 
     @property
     def sim_time_s(self) -> float:
-        if self._done == self.n_frames and self.sequence.header.get("sim_time_s") is not None:
+        if (self._done == self.sequence.n_frames
+                and self.sequence.header.get("sim_time_s") is not None):
             return float(self.sequence.header["sim_time_s"])
         return self.sequence.rows[self._done - 1].time_s if self._done else 0.0
 
@@ -402,19 +411,19 @@ def estimates_by_name(pairs: Sequence[tuple[str, str]] | None) -> dict[str, str]
 # -- methods: in this process, or in worker processes -------------------------------------------
 
 @contextmanager
-def _method_estimations(sequence, methods: tuple[str, ...], workers: int,
+def _method_estimations(sequence, n_frames: int, methods: tuple[str, ...], workers: int,
                         keep_images: bool) -> Iterator[tuple[dict, Any]]:
     """Each method's estimation and the pool behind them (None): in this process, or in a
     pool of ``workers`` processes (whose estimates come back without their diagnostic images
     unless ``keep_images``: a recording shows them, nothing else reads them, and pickling them
-    costs more than the estimates)."""
+    costs more than the estimates); the pool estimates the first ``n_frames`` frames."""
     from sim.harness.pipeline import PooledMethod
     from sim.harness.runner import MethodEstimation
 
-    if workers == 1 or not methods or not sequence.n_frames:
+    if workers == 1 or not methods or not n_frames:
         yield {method: MethodEstimation(method) for method in methods}, None
         return
-    pool = _EstimationPool(sequence, methods, workers, keep_images)
+    pool = _EstimationPool(sequence, n_frames, methods, workers, keep_images)
     try:
         yield {method: PooledMethod(pool, method) for method in methods}, pool
     finally:
@@ -478,10 +487,11 @@ class _EstimationPool:
     """Spawn workers estimating chunks of frames with every method, and decoding them with
     their ground truth; results are taken in task order."""
 
-    def __init__(self, sequence, methods: tuple[str, ...], workers: int, keep_images: bool):
+    def __init__(self, sequence, n_frames: int, methods: tuple[str, ...], workers: int,
+                 keep_images: bool):
         from sim.harness.threads import single_thread_pool
 
-        chunks = reference_chunks([row.reference_frame for row in sequence.rows],
+        chunks = reference_chunks([row.reference_frame for row in sequence.rows[:n_frames]],
                                   workers * CHUNKS_PER_WORKER)
         tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
         self.processes = single_thread_pool(min(workers, len(tasks)))

@@ -231,7 +231,8 @@ def test_an_output_that_is_a_file_or_unwritable_is_refused_before_any_work(
                                              (["sweep", "no_sweep.toml"], "--workers"),
                                              (["suite", "no_suite.toml"], "--workers"),
                                              (["run"], "--max-frames"),
-                                             (["record"], "--max-frames")])
+                                             (["record"], "--max-frames"),
+                                             (["score", "no_sequence"], "--max-frames")])
 @pytest.mark.parametrize("count", ["0", "-2", "two"])
 def test_a_bad_count_is_refused(command, option, count, capsys):
     with pytest.raises(SystemExit) as exit_info:

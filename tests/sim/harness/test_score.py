@@ -76,6 +76,43 @@ def test_scoring_a_recorded_sequence_gives_the_figures_of_the_run(folders):
         assert (folders / "w1" / name).stat().st_size > 0
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_first_frames_of_a_sequence_score_as_a_run_of_as_many_frames(folders, tmp_path,
+                                                                        workers):
+    ran = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run"), methods=METHODS,
+                        record=False, max_frames=12))
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "w"),
+                                methods=METHODS, record=False, workers=workers, max_frames=12))
+    _same_rows(_rows(tmp_path / "run"), _rows(tmp_path / "w"))
+    _same_summary(_summary(tmp_path / "run"), _summary(tmp_path / "w"))
+    assert metrics["status"] == "complete"
+    assert metrics["run"]["sim_time_s"] == ran["run"]["sim_time_s"]  # not the recording's end
+    assert (metrics["run"]["frames_done"], metrics["run"]["max_frames"]) == (12, 12)
+
+
+def test_an_estimates_file_of_every_frame_scores_its_first_frames(folders, tmp_path):
+    estimates = _estimates_from_truth(folders / "sequence", tmp_path / "mine.csv", skip={7})
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "w"),
+                                estimates={"offset": str(estimates)}, record=False,
+                                max_frames=6))
+    assert [int(row["frame_index"]) for row in _rows(tmp_path / "w")] == list(range(6))
+    assert metrics["summary"]["run"]["offset"]["n_failed"] == 1  # frame 4; 7 is not scored
+
+
+def test_more_frames_than_the_sequence_holds_score_every_frame(folders, tmp_path):
+    metrics = score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "w"),
+                                methods=METHODS, record=False, max_frames=N_FRAMES + 1))
+    _same_rows(_rows(folders / "w1"), _rows(tmp_path / "w"))
+    assert metrics["status"] == "complete" and metrics["run"]["frames_done"] == N_FRAMES
+
+
+@pytest.mark.parametrize("max_frames", [0, -1, True, 1.5, "2"])
+def test_a_frame_count_that_is_no_whole_number_from_1_is_refused(folders, tmp_path, max_frames):
+    with pytest.raises(ValueError, match=r"--max-frames .*: accepted: an integer from 1"):
+        ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / "w"),
+                    max_frames=max_frames)
+
+
 def test_two_workers_give_the_figures_of_one(folders):
     _same_rows(_rows(folders / "w1"), _rows(folders / "w2"))
     _same_summary(_summary(folders / "w1"), _summary(folders / "w2"))
@@ -491,6 +528,16 @@ def test_a_recording_that_ended_with_a_fall_scores_as_the_run_that_fell(tmp_path
     assert ran["run"]["fall"] == scored["run"]["fall"]
     assert ran["run"]["frames_done"] == scored["run"]["frames_done"] == header["frames"] < 90
     _same_rows(_rows(tmp_path / "run"), _rows(tmp_path / "score"))
+    # Its frames before the fall score as a run that stops before it, which did not fall.
+    before = header["frames"] - 1
+    ran = run(RunConfig(scenario=CI_CORRIDOR, out_dir=str(tmp_path / "run_before"),
+                        methods=("ecc",), record=False, max_frames=before))
+    scored = score(ScoreConfig(sequence=str(tmp_path / "seq"),
+                               out_dir=str(tmp_path / "score_before"), methods=("ecc",),
+                               record=False, max_frames=before))
+    assert ran["status"] == scored["status"] == "complete"
+    assert "fall" not in ran["run"] and "fall" not in scored["run"]
+    _same_rows(_rows(tmp_path / "run_before"), _rows(tmp_path / "score_before"))
 
 
 def test_the_recorded_digest_is_of_the_estimates_scored_even_if_the_file_changes(
