@@ -34,8 +34,6 @@ def walk(gait: str, direction_deg: float, seed: int, seconds: float) -> tuple[st
     ``WINDOW_S``, degrees (NaN after a fall, or while the estimate is level)."""
     import math
 
-    import numpy as np
-
     from sim.world.assembly import assemble, compile_world
     from sim.world.scenes import build_scene
     from sim.world.scenes.floor import Floor
@@ -58,7 +56,7 @@ def walk(gait: str, direction_deg: float, seed: int, seconds: float) -> tuple[st
                 2 * math.pi))))
     if robot.fall is not None:
         return f"fell at {robot.fall.time_s:.1f} s", math.nan
-    return "stands", float(np.median(off_deg)) if off_deg else math.nan
+    return "stands", statistics.median(off_deg) if off_deg else math.nan
 
 
 def _walk(args) -> tuple[str, float]:

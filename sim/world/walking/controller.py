@@ -201,9 +201,9 @@ class WalkingController:
         predicted = math.atan2(torso_mat[3], torso_mat[0]) + planner.centre.yaw - planned_now
         goal_at_plan_end = self._heading_goal + self._yaw_rate * max(0.0, plan_end_s - now_s)
         heading_error = math.remainder(goal_at_plan_end - predicted, 2.0 * math.pi)
-        self.planner.turn_correction_rad = _clip(self._heading_gain * heading_error,
-                                                 self._max_heading_correction)
-        self.planner.update(now_s, self._preview_times[-1])
+        planner.turn_correction_rad = _clip(self._heading_gain * heading_error,
+                                            self._max_heading_correction)
+        planner.update(now_s, self._preview_times[-1])
         if self.step_adjustment is not None:
             self.step_adjustment.update(now_s, data, self.planner)
             if self.step_adjustment.disturbed_at_s is not None:
