@@ -100,3 +100,41 @@ def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
         assert found[depth]["estimate"] != "ok" and found[depth]["truth"] == "ok"
         assert found[depth]["optimum_off_truth_deg"] < 1.0
     assert "| mine | " in script.table([found])
+
+
+def test_rejected_estimates_sorts_the_checks_rejections_into_accurate_and_off(tmp_path):
+    """benchmarks/rejected_estimates.py, which docs/suites.md quotes, on a run folder made by
+    hand: a rejected estimate 0.5 deg and 1.5 px off counts as accurate, one 6 deg off as far
+    off; a frame whose truth failed, a failure of another status and, with --where-ok, a frame
+    the other method did not call ok are left out."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("rejected_estimates",
+                                                  ROOT / "benchmarks" / "rejected_estimates.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    run = tmp_path / "run"
+    run.mkdir()
+    truth = {0: "ok", 1: "ok", 2: "ok", 3: "failed", 4: "ok"}
+    ecc_status = {0: "ok", 1: "ok", 2: "ok", 3: "ok", 4: "unverified"}
+    lines = ["frame_index,method,status,true_angle_deg,true_dx_px,true_dy_px,truth_status"]
+    for frame, truth_status in truth.items():
+        lines.append(f"{frame},t2fuzzy,unverified,1.0,10.0,-5.0,{truth_status}")
+        lines.append(f"{frame},ecc,{ecc_status[frame]},1.0,10.0,-5.0,{truth_status}")
+    (run / "frames.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    failures = [(0, "unverified", [1.5, 11.5, -5.0], "ambiguous"),  # accurate
+                (1, "unverified", [7.0, 10.0, -5.0], "correlation"),  # 6 deg off
+                (2, "rotation_unconverged", [30.0, 0.0, 0.0], None),
+                (3, "unverified", [1.0, 10.0, -5.0], "depth"),  # its truth failed
+                (4, "unverified", [1.0, 13.0, -5.0], "parallax")]  # 3 px off; ECC not ok
+    (run / "failures.jsonl").write_text("".join(
+        json.dumps({"frame_index": frame, "method": "t2fuzzy", "status": status,
+                    "diagnostics": {"unverified_motion": motion, "verify_failed": test}}) + "\n"
+        for frame, status, motion, test in failures), encoding="utf-8")
+    every = script.rejected(script.run_folders([run]))["t2fuzzy"]
+    assert (every["rejected"], every["accurate"], every["far_off"]) == (3, 1, 1)
+    assert every["accurate_by_test"] == {"ambiguous": 1}
+    assert every["median_rotation_deg"] == pytest.approx(0.5)  # of 0.5, 6 and 0 deg
+    assert every["median_shift_px"] == pytest.approx(1.5)  # of 1.5, 0 and 3 px
+    where_ecc_ok = script.rejected([run], where_ok="ecc")["t2fuzzy"]
+    assert (where_ecc_ok["rejected"], where_ecc_ok["accurate"]) == (2, 1)
