@@ -32,9 +32,11 @@ FAR_DEG, FAR_PX = 5.0, 10.0
 
 def run_folders(paths: list[Path]) -> list[Path]:
     """The run folders named, a suite folder standing for its ``runs/*``."""
+    from sim.harness.sweep import RUNS_FOLDER
+
     folders = []
     for path in paths:
-        folders += sorted(p for p in (path / "runs").iterdir() if p.is_dir()) \
+        folders += sorted(p for p in (path / RUNS_FOLDER).iterdir() if p.is_dir()) \
             if (path / "suite.json").is_file() else [path]
     return folders
 
@@ -42,11 +44,13 @@ def run_folders(paths: list[Path]) -> list[Path]:
 def rejected(folders: list[Path], where_ok: str | None = None) -> dict[str, dict]:
     """Per method, the figures of its rejected estimates over the run folders (see the
     module's docstring)."""
+    from sim.harness.report import FAILURES_JSONL, FRAMES_CSV
+
     errors: dict[str, list[tuple[float, float]]] = defaultdict(list)
     accurate_by_test: dict[str, Counter] = defaultdict(Counter)
     for folder in folders:
         truth, ok_frames = {}, set()
-        with open(folder / "frames.csv", newline="", encoding="utf-8") as frames:
+        with open(folder / FRAMES_CSV, newline="", encoding="utf-8") as frames:
             for row in csv.DictReader(frames):
                 index = int(row["frame_index"])
                 if row["truth_status"] == "ok":
@@ -54,7 +58,7 @@ def rejected(folders: list[Path], where_ok: str | None = None) -> dict[str, dict
                                          ("true_angle_deg", "true_dx_px", "true_dy_px"))
                 if row["method"] == where_ok and row["status"] == "ok":
                     ok_frames.add(index)
-        with open(folder / "failures.jsonl", encoding="utf-8") as failures:
+        with open(folder / FAILURES_JSONL, encoding="utf-8") as failures:
             for line in failures:
                 failure = json.loads(line)
                 index, motion = failure["frame_index"], failure["diagnostics"].get(

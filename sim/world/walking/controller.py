@@ -288,7 +288,7 @@ class WalkingController:
         g = self.gait
         self._now = now_s
         feet, lifts = self.planner.feet_now(now_s)
-        yaw = feet[1].yaw + math.remainder(feet[0].yaw - feet[1].yaw, 2 * math.pi) / 2.0
+        yaw = mid_pose(*feet).yaw
         body_rot = rot_z(yaw) @ self._lean_rot
         com_xy = self._preview.state[0] + com_correction
         torso_pos = np.array([com_xy[0] + self._com_offset[0], com_xy[1] + self._com_offset[1],
