@@ -141,6 +141,14 @@ class VerificationParams:
             (it leaves less than ``min_overlap``, or a flat overlap) fails the estimate too.
             A negative margin asks the next shifts to score better than the best. Default 0.03
             (docs/method.md, section 11, "Ridges").
+        strong_edge_ridge: the shift must be pinned down on the strong edges too (the depth
+            steps deeper than ``edge_floor_levels``, :func:`edge_images`): the same test of
+            ``ridge_margin`` on their plain masked NCC. A wall that fills the view, seen at a
+            slant above the floor, has no depth step but the floor's crease, which does not fix
+            a sideways shift; the one-level contours of its disparity and the sensor's noise
+            can, by a little, and at a motion the camera did not make (docs/method.md, section
+            11, "Ridges of the depth steps"). Default True; False, or ``edge_floor_levels`` 0:
+            every response alone.
         depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
             compensated current frame disagrees in depth with the reference when its disparity
             lies more than the larger of the first two (gray levels; a share of its own
@@ -205,6 +213,7 @@ class VerificationParams:
     far_margin: float = 0.03
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
     second_look_rivals: bool = True
+    strong_edge_ridge: bool = True
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.
@@ -228,6 +237,7 @@ class VerificationParams:
             check_number(name, getattr(self, name))
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
         check_flag("second_look_rivals", self.second_look_rivals)
+        check_flag("strong_edge_ridge", self.strong_edge_ridge)
 
     def beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
@@ -240,14 +250,14 @@ def edge_image(image: np.ndarray, sigma_px: float,
                clip_factor: float) -> tuple[np.ndarray, np.ndarray]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, and where it is measured:
     :func:`edge_images` without a floor."""
-    edges, _, measured = edge_images(image, sigma_px, clip_factor, 0.0)
+    edges, _, measured, _ = edge_images(image, sigma_px, clip_factor, 0.0)
     return edges, measured
 
 
 def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
-                floor_levels: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                floor_levels: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, the same without its weak
-    responses, and where they are measured.
+    responses, where they are measured, and whether the clip limit lies below the floor.
 
     The smoothing is a normalised convolution (the blurred image divided by the blurred valid
     mask), so invalid pixels (0) do not leak in as a step; pixels closer than 1.5 ``sigma_px``
@@ -263,20 +273,21 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
         Responses are clipped to +- ``clip_factor`` times their median magnitude over the
         measured pixels (at least +- :data:`MIN_CLIP`).
     floor_levels : float
-        When the clip limit is below ``floor_levels`` times the largest response of a
-        one-level depth step (:func:`step_response`), the responses whose magnitude (before
-        the clip) is below that too are 0 in ``strong``: the clip would give them the weight
-        of the strongest depth steps.
+        The responses whose magnitude (before the clip) is below ``floor_levels`` times the
+        largest response of a one-level depth step (:func:`step_response`) are 0 in
+        ``strong``.
 
     Returns
     -------
     edges : (H, W) float32 ndarray
         The clipped response, 0 where it is not measured.
     strong : (H, W) float32 ndarray
-        ``edges`` without the weak responses; ``edges`` itself when the clip limit is not
-        below the floor.
+        ``edges`` without the weak responses; ``edges`` itself when no response is weak.
     measured : (H, W) uint8 ndarray
         1 where the response is measured, else 0.
+    floored : bool
+        Whether the clip limit lies below the floor: the clip then gives a weak response the
+        weight of the strongest depth steps.
     """
     valid = (image > 0).view(np.uint8)
     # The Gaussian to 3 sigma, filtered straight from uint8 to float32 (cv2.GaussianBlur's
@@ -294,14 +305,13 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
     scale = clip_factor * _median(responses) if responses.size else 0.0
     limit = max(scale, MIN_CLIP)
     floor = floor_levels * step_response(sigma_px)
-    # Below the floor, the clip gives a weak response the weight of the strongest steps.
-    weak = np.abs(laplacian) < floor if limit < floor else None
+    weak = np.abs(laplacian) < floor
     edges = np.clip(laplacian, -limit, limit, out=laplacian)
-    if weak is None:
-        return edges, edges, measured
+    if not weak.any():
+        return edges, edges, measured, limit < floor
     strong = edges.copy()
     strong[weak] = 0.0
-    return edges, strong, measured
+    return edges, strong, measured, limit < floor
 
 
 @functools.lru_cache(maxsize=8)
@@ -527,10 +537,13 @@ class Verifier:
         self._last_measured: CurrentEdges | None = None  # see measure
         self._reference_disparity = reference
         self._reference_range = disparity_range(reference)
-        edges, strong, measured = edge_images(reference, params.sigma_px, params.clip_factor,
-                                              params.edge_floor_levels)
-        self._reference, self._reference_strong = (edges, measured), (strong, measured)
-        self._reference_floored = strong is not edges
+        edges, strong, measured, floored = edge_images(reference, params.sigma_px,
+                                                       params.clip_factor,
+                                                       params.edge_floor_levels)
+        # Tests 2 and 6 on the strong edges only where the floor applies to a frame.
+        self._reference = (edges, measured)
+        self._reference_strong = (strong if floored else edges, measured)
+        self._reference_floored = floored
         self._reference_half = _half_resolution(*self._reference)
         half = self._reference_half[0]
         self._window = cv2.createHanningWindow(half.shape[::-1], cv2.CV_32F)
@@ -541,13 +554,22 @@ class Verifier:
         self._shifts = MaskedCorrelation(half.shape, reach, params.min_overlap)
         self._reference_shifts = self._shifts.spectra(half, self._reference_half[1].view(bool),
                                                       moving=False)
-        steps = np.arange(-reach, reach + 1)
-        distance = 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij"))
-        self._within_offset = distance <= params.max_offset_px
+        self._within_offset = _within_offset(reach, params.max_offset_px)
         # Offsets (rows, columns) of the shifts one half-resolution pixel beyond the offset
         # limits of a shift: where a ridge through it continues.
-        rows, cols = np.nonzero(~self._within_offset & (distance <= params.max_offset_px + 2.0))
+        rows, cols = np.nonzero(~self._within_offset
+                                & _within_offset(reach, params.max_offset_px + 2.0))
         self._ring = (rows - reach, cols - reach)
+        # The shifts of test 5's ridge on the strong edges: those within the offset limits
+        # and their rings, no farther (a smaller transform than every shift's).
+        self._step_shifts = None
+        if params.strong_edge_ridge and params.edge_floor_levels > 0:
+            near = min(math.ceil(params.max_offset_px + 1.0), min(half.shape) - 1)
+            self._step_shifts = MaskedCorrelation(half.shape, near, params.min_overlap)
+            self._step_within = _within_offset(near, params.max_offset_px)
+            steps_half = _half_resolution(strong, measured)
+            self._reference_steps = self._step_shifts.spectra(
+                steps_half[0], steps_half[1].view(bool), moving=False)
         # The far half of the reference's depths (test 7).
         self._far = MaskedCorrelation(half.shape, min(FAR_REACH_PX // 2, min(half.shape) - 1),
                                       params.min_overlap)
@@ -699,16 +721,18 @@ class Verifier:
         if last is not None and np.array_equal(last.disparity, current):
             return last
         params = self.params
-        edges, strong, measured = edge_images(current, params.sigma_px, params.clip_factor,
-                                              params.edge_floor_levels)
+        edges, steps, measured, floored = edge_images(current, params.sigma_px,
+                                                      params.clip_factor,
+                                                      params.edge_floor_levels)
+        strong = steps if floored else edges
         null_correlation, _ = structure_correlation(*self._reference, edges, measured)
         strong_null = (structure_correlation(*self._reference_strong, strong, measured)[0]
-                       if strong is not edges or self._reference_floored else None)
+                       if floored or self._reference_floored else None)
         # A copy: the caller may reuse its array for the next frame.
         self._last_measured = CurrentEdges(current.copy(), noise_level(current),
                                            (edges, measured), (strong, measured),
                                            _half_resolution(edges, measured), null_correlation,
-                                           strong_null)
+                                           strong_null, (steps, measured))
         return self._last_measured
 
     def __call__(self, current: np.ndarray, motion: Motion) -> Motion:
@@ -731,9 +755,9 @@ class Verifier:
         ``"no_motion"``: the first test failed; a turn beyond the searched angles without a
         convincing optimum adds ``verify_beyond_search`` (True), a rival ``verify_candidate`` and
         ``verify_candidate_correlation``, and a rival shift (:meth:`shift_rival`, whose scores are
-        its own) ``verify_shift_correlation``, the estimate's score on the same scale, and
-        ``verify_ridge``) and the rejected estimate as ``unverified_motion``. A Motion that is
-        already a failure is returned as it is."""
+        its own) ``verify_shift_correlation``, the estimate's score on the same scale,
+        ``verify_ridge`` and ``verify_ridge_on_steps``) and the rejected estimate as
+        ``unverified_motion``. A Motion that is already a failure is returned as it is."""
         if not motion.ok:
             return motion
         params = self.params
@@ -788,13 +812,14 @@ class Verifier:
                 if far[0] > params.max_far_offset_px and far[1] > params.far_margin:
                     failed = "parallax"
         if failed is None:
-            rival = self.shift_rival(compensated_half, motion)
+            rival = self.shift_rival(compensated_half, motion, current)
             if rival is not None:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival.motion.as_tuple(),
                                    verify_candidate_correlation=rival.score,
                                    verify_shift_correlation=rival.estimate_score,
-                                   verify_ridge=rival.ridge)
+                                   verify_ridge=rival.ridge,
+                                   verify_ridge_on_steps=rival.on_steps)
         if failed is None:  # the search costs most of the check: only for what passed so far
             rival = self._rival_candidate(current, motion, optimum, optimum_correlation,
                                            beyond)
@@ -827,8 +852,8 @@ class Verifier:
                                   params.depth_tolerance_share,
                                   params.depth_tolerance_noise * current.noise)
 
-    def shift_rival(self, compensated_half: tuple[np.ndarray, np.ndarray],
-                    motion: Motion) -> ShiftRival | None:
+    def shift_rival(self, compensated_half: tuple[np.ndarray, np.ndarray], motion: Motion,
+                    current: CurrentEdges | None = None) -> ShiftRival | None:
         """A motion at the rotation of ``motion``, with a shift beyond the offset limits, that
         lines the depth edges up about as well as the estimate or better; None if there is none.
 
@@ -847,7 +872,9 @@ class Verifier:
         shift just beyond the offset limits of the best shift within them (up to 2 px farther)
         is one if its plain NCC, not weighted, is within ``ridge_margin`` of that best shift's,
         or if it cannot be scored (too little overlap, a flat one): the frames do not pin the
-        shift down to the limits.
+        shift down to the limits. With ``strong_edge_ridge`` and the frame's measurements
+        (``current``), the same ridge test on the strong edges (``CurrentEdges.steps``) follows,
+        over the shifts it needs alone: the depth steps must pin the shift down too.
         """
         compensated = self._shifts.spectra(*compensated_half, moving=True)
         plain, scores = self._shifts.surfaces(self._reference_shifts, compensated)
@@ -856,32 +883,27 @@ class Verifier:
         found = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, scores),
                              self._shifts.max_shift)
         if math.isfinite(here) and found.peak > here - self.params.candidate_margin:
-            shift, score, ridge = (found.x, found.y), found.peak, False
-        else:  # no second peak; along a ridge there is none, but the next shifts score as high
-            within = np.where(self._within_offset, plain, -np.inf)
-            best = np.unravel_index(int(np.argmax(within)), within.shape)
-            here = float(within[best])
-            if not math.isfinite(here):
-                return None
-            rows, cols = best[0] + self._ring[0], best[1] + self._ring[1]
-            inside = (rows >= 0) & (rows < plain.shape[0]) & (cols >= 0) & (cols < plain.shape[1])
-            beyond = np.full(rows.shape, -np.inf, np.float32)
-            beyond[inside] = plain[rows[inside], cols[inside]]
-            # A shift that cannot be scored (too little overlap, a flat one, beyond the reach)
-            # is not shown to score lower: the frames do not pin the shift down on that side.
-            unscored = ~np.isfinite(beyond)
-            if unscored.any():
-                index = int(np.argmax(unscored))
-            else:
-                index = int(np.argmax(beyond))
-                if not beyond[index] > here - self.params.ridge_margin:
-                    return None
-            score = float(beyond[index])
-            reach = self._shifts.max_shift
-            shift, ridge = (float(cols[index] - reach), float(rows[index] - reach)), True
+            return self._shift_rival(motion, (found.x, found.y), here, found.peak)
+        # No second peak; along a ridge there is none, but the next shifts score as high.
+        ridge = _ridge_end(plain, self._within_offset, self._ring, self.params.ridge_margin)
+        if ridge is None and self._step_shifts is not None and current is not None:
+            if current.steps_half is None:
+                current.steps_half = _half_resolution(*current.steps)
+            steps = self._step_shifts.spectra(*self._compensated_half(current.steps_half, motion),
+                                              moving=True)
+            ridge = _ridge_end(self._step_shifts.surface(self._reference_steps, steps),
+                               self._step_within, self._ring, self.params.ridge_margin)
+            if ridge is not None:
+                return self._shift_rival(motion, *ridge, ridge=True, on_steps=True)
+        return None if ridge is None else self._shift_rival(motion, *ridge, ridge=True)
+
+    @staticmethod
+    def _shift_rival(motion: Motion, shift: tuple[float, float], here: float, score: float,
+                     ridge: bool = False, on_steps: bool = False) -> ShiftRival:
+        """The :class:`ShiftRival` of a half-resolution ``shift`` from ``motion``."""
         turned = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.asarray(shift))
         return ShiftRival(Motion(motion.angle_deg, motion.dx + float(turned[0]),
-                                 motion.dy + float(turned[1])), here, score, ridge)
+                                 motion.dy + float(turned[1])), here, score, ridge, on_steps)
 
     def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
                          optimum_correlation: float, beyond: bool) -> tuple[Motion, float] | None:
@@ -988,10 +1010,12 @@ class CurrentEdges:
         edges: the frame's edge image (response, measured mask; :func:`edge_images`).
         strong: the same without the weak responses where the floor applies
             (``edge_floor_levels``; :func:`edge_images`), else the same arrays.
-        half: the same at half resolution.
+        half: the edges at half resolution.
         null_correlation: the :func:`structure_correlation` of the uncompensated frame.
         strong_null_correlation: the same on the strong edges, where the floor applies to the
             frame or to the reference; None elsewhere.
+        steps: the edges without the weak responses, wherever the floor applies or not.
+        steps_half: the same at half resolution, once a check has needed it; None before.
         candidate: the best motion of the search over the grid of angles
             (:meth:`Verifier.candidate`), once a check has needed it; None before.
         candidate_ends: the ends of the candidate's climbs (:meth:`Verifier._rival_candidate`),
@@ -1008,6 +1032,8 @@ class CurrentEdges:
     half: tuple[np.ndarray, np.ndarray]
     null_correlation: float
     strong_null_correlation: float | None
+    steps: tuple[np.ndarray, np.ndarray]
+    steps_half: tuple[np.ndarray, np.ndarray] | None = None
     candidate: Motion | None = None
     candidate_ends: list[list] | None = None
     null_disagreement: float | None = None
@@ -1023,12 +1049,53 @@ class ShiftRival(NamedTuple):
         score: the rival's score, on the same scale (weighted for a peak, plain for a ridge;
             -inf for a shift that cannot be scored).
         ridge: whether it continues a ridge rather than being a peak of its own.
+        on_steps: whether that ridge is the strong edges' (``strong_edge_ridge``); the scores
+            are then theirs.
     """
 
     motion: Motion
     estimate_score: float
     score: float
     ridge: bool
+    on_steps: bool
+
+
+def _ridge_end(plain: np.ndarray, within: np.ndarray, ring: tuple[np.ndarray, np.ndarray],
+               margin: float) -> tuple[tuple[float, float], float, float] | None:
+    """Where a ridge through the best shift within the offset limits goes on, for
+    :meth:`Verifier.shift_rival`: the best shift within them (``within``) on the surface
+    ``plain`` (rows dy, columns dx, centred on no shift), and the shifts of ``ring`` around it
+    (row and column offsets); the best of those, as ((dx, dy) from no shift, the best shift's
+    score, its score), when it scores within ``margin`` of the best shift or cannot be scored
+    (-inf: too little overlap, a flat one, beyond the surface); None when every one scores
+    lower, or no shift within the limits can be scored."""
+    scored = np.where(within, plain, -np.inf)
+    best = np.unravel_index(int(np.argmax(scored)), scored.shape)
+    here = float(scored[best])
+    if not math.isfinite(here):
+        return None
+    rows, cols = best[0] + ring[0], best[1] + ring[1]
+    inside = (rows >= 0) & (rows < plain.shape[0]) & (cols >= 0) & (cols < plain.shape[1])
+    beyond = np.full(rows.shape, -np.inf, np.float32)
+    beyond[inside] = plain[rows[inside], cols[inside]]
+    # A shift that cannot be scored is not shown to score lower: the frames do not pin the
+    # shift down on that side.
+    unscored = ~np.isfinite(beyond)
+    if unscored.any():
+        index = int(np.argmax(unscored))
+    else:
+        index = int(np.argmax(beyond))
+        if not beyond[index] > here - margin:
+            return None
+    reach = plain.shape[0] // 2
+    return (float(cols[index] - reach), float(rows[index] - reach)), here, float(beyond[index])
+
+
+def _within_offset(reach: int, offset_px: float) -> np.ndarray:
+    """Which half-resolution shifts of a surface over [-``reach``, ``reach``]² (rows dy,
+    columns dx) lie within ``offset_px`` full-resolution pixels of no shift."""
+    steps = np.arange(-reach, reach + 1)
+    return 2.0 * np.hypot(*np.meshgrid(steps, steps, indexing="ij")) <= offset_px
 
 
 def _half_resolution(edges: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

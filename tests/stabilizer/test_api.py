@@ -241,6 +241,8 @@ def test_a_second_look_beyond_the_offset_limits_that_passes_makes_the_estimate_a
 def test_second_look_rivals_is_a_flag():
     with pytest.raises(ValueError, match="second_look_rivals must be True or False"):
         VerificationParams(second_look_rivals=1)
+    with pytest.raises(ValueError, match="strong_edge_ridge must be True or False"):
+        VerificationParams(strong_edge_ridge=1)
 
 
 def test_no_second_look_after_a_failed_check_without_the_check_or_for_a_failure():
