@@ -31,6 +31,7 @@ docs/method.md, section 12.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -273,7 +274,7 @@ def check_time(folders: list[Path], stride: int, param: str, values: list[float]
     :class:`~stabilizer.verification.VerificationParams`), on the same ``t2fuzzy`` estimates
     (made once without the check), the variants alternating frame by frame; and how many
     full-resolution climbs each ran (docs/method.md, section 11, "Half a step astray")."""
-    from stabilizer.verification import VerificationParams, Verifier
+    from stabilizer.verification import Verifier
 
     seconds, climbs, checks = dict.fromkeys(values, 0.0), dict.fromkeys(values, 0), 0
     for folder in folders:
@@ -283,8 +284,7 @@ def check_time(folders: list[Path], stride: int, param: str, values: list[float]
         for index, motion in zip(range(0, len(frames), stride), motions):
             if references[index] != current:
                 current = references[index]
-                verifiers = {value: Verifier(frames[current],
-                                             VerificationParams(**{param: value}))
+                verifiers = {value: Verifier(frames[current], _check_params(param, value))
                              for value in values}
                 for value, verifier in verifiers.items():
                     _count_calls(verifier, "full_resolution_optimum", climbs, value)
@@ -300,6 +300,23 @@ def check_time(folders: list[Path], stride: int, param: str, values: list[float]
         print(f"{param} {value}: {1e3 * seconds[value] / checks:.3f} ms per check (CPU), "
               f"{climbs[value]} full-resolution climbs, {checks} checks")
     print(f"load average {load}")
+
+
+def _check_params(param: str, value: float):
+    """:class:`~stabilizer.verification.VerificationParams` with ``param`` set to ``value``; a
+    switch (a field whose default is True or False) takes 0 or 1. ValueError for a value or a
+    name the check does not accept."""
+    from stabilizer.verification import VerificationParams
+
+    names = [field.name for field in dataclasses.fields(VerificationParams)]
+    if param not in names:
+        raise ValueError(f"--param {param}: no such setting of the check; accepted: "
+                         f"{', '.join(names)}")
+    if isinstance(getattr(VerificationParams(), param), bool):
+        if value not in (0.0, 1.0):
+            raise ValueError(f"--values {value:g}: {param} is a switch; accepted: 0 and 1")
+        value = bool(value)
+    return VerificationParams(**{param: value})
 
 
 def _count_calls(instance, name: str, counts: dict, key) -> None:
@@ -350,7 +367,7 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
     more than 5 deg or 10 px and the failure rate (mean over the sequences): every method's
     estimates are made once without the check, and each variant of the check is applied to the
     same estimates (docs/method.md, section 11, "Ambiguity" and "Ridges")."""
-    from stabilizer.verification import VerificationParams, Verifier
+    from stabilizer.verification import Verifier
 
     loaded = [_frames(folder) for folder in folders]
     found = {margin: {} for margin in values}
@@ -358,7 +375,7 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
         unchecked = [_estimates(frames, references, method, False, stride)[0]
                      for frames, references, _, _ in loaded]
         for margin in values:
-            params = VerificationParams(**{param: margin})
+            params = _check_params(param, margin)
             rows = []
             for (frames, references, truth, truth_ok), motions in zip(loaded, unchecked):
                 checked, verifier, current = [], None, None
@@ -652,7 +669,6 @@ def _setting(text: str) -> tuple[str, object]:
 def _check_refinements(settings: dict) -> None:
     """A ValueError naming a setting that :class:`~stabilizer.t2fuzzy_refinements.Refinements`
     does not have or refuses."""
-    import dataclasses
 
     from stabilizer.t2fuzzy_refinements import Refinements
 
@@ -710,7 +726,8 @@ def main(argv: list[str] | None = None) -> int:
                        default=[-0.1, -0.05, 0.03, 0.05, 0.08, 0.1])
     swept.add_argument("--param", default="candidate_margin",
                        choices=["candidate_margin", "outside_margin", "ridge_margin",
-                                "null_margin", "full_resolution_travel_deg"])
+                                "null_margin", "full_resolution_travel_deg",
+                                "strong_edge_ridge"])
     rivalled = commands.add_parser("rivals", help="second looks that pass with worse edges")
     rivalled.add_argument("folders", type=Path, nargs="+")
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
@@ -734,6 +751,9 @@ def main(argv: list[str] | None = None) -> int:
                                  f"can be created and written") from None
         if args.command == "summary":
             _check_refinements(dict(args.refinements))
+        if args.command in ("check-time", "margins"):
+            for value in args.values:
+                _check_params(args.param, value)
         sequences = _sequences(args.folders) if hasattr(args, "folders") else None
         if args.command == "figures":
             missing = [name for name, _, _ in FIGURE_CASES
