@@ -1,6 +1,7 @@
 """What the trust check saw on the ``"ok"`` estimates a suite found off by more than 5° or 10 px.
 
     python benchmarks/ok_but_off.py SUITE_DIR        # a folder `egostab suite` wrote
+    python benchmarks/ok_but_off.py SUITE_DIR --figures DIR   # and a picture of each frame
 
 For every frame under "Ok but off" in the suite's tables (suite.json, ``large_errors``), the
 trust check runs again on that frame and its reference, for the method's estimate and for the
@@ -12,7 +13,7 @@ the truth's residual, the estimate's end-point error against the floor the rigid
 the check climbed to from the estimate lies from the truth. A truth that fails where the
 estimate passes says the check's edges do not line up at the truth; the exact depth tells
 whether the sensor (noise, unmeasured surfaces) is why. docs/suites.md reports it for the
-maintainers' checks.
+maintainers' checks. With ``--figures DIR``, one picture per frame (:func:`picture`).
 """
 
 from __future__ import annotations
@@ -71,7 +72,9 @@ def looked_at(suite_dir: Path) -> list[dict]:
             truth = Motion(*(float(row[key]) for key in ("true_angle_deg", "true_dx_px",
                                                          "true_dy_px")))
             result = dict(entry, method=method, residual_px=float(row["truth_residual_px"]),
-                          epe_px=float(row["epe_px"]), floor_px=float(row["truth_epe_px"]))
+                          epe_px=float(row["epe_px"]), floor_px=float(row["truth_epe_px"]),
+                          reference_frame=int(row["reference_index"]),
+                          estimate=estimate.as_tuple(), truth=truth.as_tuple())
             for depth, image in (("sensor", lambda frame: frame.disparity8),
                                  ("exact", _exact_disparity)):
                 check = Verifier(image(reference))
@@ -83,6 +86,66 @@ def looked_at(suite_dir: Path) -> list[dict]:
                         on_estimate.diagnostics["verify_optimum"], truth.angle_deg)}
             found.append(result)
     return found
+
+
+def picture(reference: np.ndarray, current: np.ndarray, estimate, truth,
+            scale: int = 3) -> np.ndarray:
+    """Four panels side by side, each ``scale`` times the frame's size (BGR, uint8): the
+    reference, the current frame, and the reference (magenta) over the current frame compensated
+    by the estimate (green), then by the truth: where the two line up they make gray, where they
+    do not, magenta and green fringes. Disparities (uint8, 0 = unmeasured, black) are stretched
+    to the reference's 1st-99th percentile."""
+    from stabilizer.motion import motion_matrix
+
+    measured = reference[reference > 0]
+    low, high = np.percentile(measured, (1, 99)) if measured.size else (0.0, 255.0)
+
+    def stretched(image: np.ndarray) -> np.ndarray:
+        shown = np.clip((image.astype(np.float32) - low) * (235.0 / max(high - low, 1.0)) + 20.0,
+                        20.0, 255.0).astype(np.uint8)
+        shown[image == 0] = 0
+        return shown
+
+    def compensated(motion) -> np.ndarray:
+        height, width = current.shape
+        return cv2.warpAffine(current, motion_matrix(motion, current.shape), (width, height),
+                              flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP)
+
+    shown = stretched(reference)
+    panels = [cv2.cvtColor(shown, cv2.COLOR_GRAY2BGR),
+              cv2.cvtColor(stretched(current), cv2.COLOR_GRAY2BGR)]
+    panels += [cv2.merge([shown, stretched(compensated(motion)), shown])
+               for motion in (estimate, truth)]
+    labels = ("reference", "current", "estimate", "truth")
+    row = []
+    for panel, label in zip(panels, labels):
+        panel = cv2.resize(panel, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+        cv2.putText(panel, label, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 2)
+        row.append(panel)
+    return np.hstack(row)
+
+
+def write_pictures(found: list[dict], suite_dir: Path, out: Path) -> list[Path]:
+    """:func:`picture` of every row of :func:`looked_at`, on the sensor's depth, as
+    ``out/<method>__<sequence>__<frame>.png`` (each written whole or not at all)."""
+    from sim.atomic import atomic_path
+    from sim.harness.sequence import load_sequence
+    from stabilizer import Motion
+
+    written = []
+    for row in found:
+        sequence = load_sequence(suite_dir / "runs" / row["sequence"] / "sequence")
+        path = out / f"{row['method']}__{row['sequence']}__{row['frame']}.png"
+        image = picture(sequence.frame(row["reference_frame"]).disparity8,
+                        sequence.frame(row["frame"]).disparity8,
+                        Motion(*row["estimate"]), Motion(*row["truth"]))
+        encoded, png = cv2.imencode(".png", image)
+        if not encoded:
+            raise OSError(f"{path}: OpenCV could not encode the picture as PNG")
+        with atomic_path(path) as temporary:
+            temporary.write_bytes(png.tobytes())
+        written.append(path)
+    return written
 
 
 def table(found: list[dict]) -> str:
@@ -112,13 +175,28 @@ def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(prog="ok_but_off.py", description=__doc__.splitlines()[0])
     parser.add_argument("suite_dir", type=path_option,
                         help="a suite folder (`egostab suite ... --out DIR`)")
+    parser.add_argument("--figures", type=path_option, metavar="DIR",
+                        help="also draw each frame (reference, current, compensated by the "
+                             "estimate and by the truth) into DIR")
     args = parser.parse_args(argv)
-    if not (args.suite_dir / "suite.json").is_file():
-        parser.error(f"{args.suite_dir}: no suite.json; accepted: a folder `egostab suite` "
-                     f"wrote")
+    from sim.atomic import check_output_path, prepare_output_dir
+
+    try:
+        if args.figures is not None:  # checked before anything is made
+            check_output_path(args.figures, "--figures")
+        if not (args.suite_dir / "suite.json").is_file():
+            raise ValueError(f"{args.suite_dir}: no suite.json; accepted: a folder `egostab "
+                             f"suite` wrote")
+        if args.figures is not None:
+            prepare_output_dir(args.figures, "--figures")
+    except ValueError as error:
+        parser.error(str(error))
     cv2.setNumThreads(1)
     found = looked_at(args.suite_dir)
     print(table(found) if found else "no ok estimate off by more than 5 deg or 10 px")
+    if args.figures is not None:
+        for path in write_pictures(found, args.suite_dir, args.figures):
+            print(path)
     return 0
 
 

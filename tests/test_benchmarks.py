@@ -101,6 +101,24 @@ def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
         assert found[depth]["optimum_off_truth_deg"] < 1.0
     assert "| mine | " in script.table([found])
 
+    # The picture: reference, current, then the overlays; the one at the truth lines the frames
+    # up (gray), the one at the estimate turned 8 degrees does not (magenta and green apart).
+    import cv2
+    import numpy as np
+
+    from sim.harness.sequence import load_sequence
+
+    (path,) = script.write_pictures([found], out, tmp_path / "figures")
+    image = cv2.imread(str(path))
+    rows, columns = load_sequence(run / "sequence").frame(20).disparity8.shape
+    assert image.shape == (3 * rows, 4 * 3 * columns, 3)
+    width = 3 * columns
+    at_estimate, at_truth = (image[40:, k * width:(k + 1) * width].astype(int) for k in (2, 3))
+    both = [(panel[..., 1] > 0) & (panel[..., 2] > 0) for panel in (at_estimate, at_truth)]
+    apart = [float(np.abs(panel[..., 1] - panel[..., 2])[shown].mean())
+             for panel, shown in zip((at_estimate, at_truth), both)]
+    assert apart[1] < 0.5 * apart[0], apart
+
 
 def test_rejected_estimates_sorts_the_checks_rejections_into_accurate_and_off(tmp_path):
     """benchmarks/rejected_estimates.py, which docs/suites.md quotes, on a run folder made by

@@ -242,6 +242,9 @@ def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
      "--values 2: strong_edge_ridge is a switch; accepted: 0 and 1"),
     ("t2fuzzy_failures.py", ["check-time", "x", "--param", "no_such", "--values", "1"],
      "--param no_such: no such setting of the check; accepted: min_correlation"),
+    ("ok_but_off.py", ["no_such_folder", "--figures", "/dev/null"],
+     "--figures /dev/null: exists and is not a folder"),
+    ("ok_but_off.py", ["no_such_folder"], "no_such_folder: no suite.json"),
     ("t2fuzzy_failures.py", ["figures", "no_such_folder"],
      "no_such_folder/hall_de_2001: no sequence; accepted: the folder `record` wrote"),
 ])
