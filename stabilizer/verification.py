@@ -149,6 +149,15 @@ class VerificationParams:
             can, by a little, and at a motion the camera did not make (docs/method.md, section
             11, "Ridges of the depth steps"). Default True; False, or ``edge_floor_levels`` 0:
             every response alone.
+        weighted_rivals: the end of a climb from the grid's candidate beyond the offset limits
+            (test 5) is a rival also when its :func:`structure_correlation` weighted by the
+            shares of both frames' edges that its overlap holds (``weighted=True``) exceeds the
+            weighted correlation at the estimate's optimum: it lines up more of the frames, and
+            better. A structure repeated across the view (a shelf's boards, a tower of alike
+            boxes) lined up one period off leaves a smaller overlap that holds the repeated
+            structure alone and correlates higher than the truth, whose overlap holds near
+            furniture's parallax too (docs/method.md, section 11, "Repeated structures").
+            Default True; False: the unweighted correlations alone decide.
         depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
             compensated current frame disagrees in depth with the reference when its disparity
             lies more than the larger of the first two (gray levels; a share of its own
@@ -214,6 +223,7 @@ class VerificationParams:
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
     second_look_rivals: bool = True
     strong_edge_ridge: bool = True
+    weighted_rivals: bool = True
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.
@@ -238,6 +248,7 @@ class VerificationParams:
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
         check_flag("second_look_rivals", self.second_look_rivals)
         check_flag("strong_edge_ridge", self.strong_edge_ridge)
+        check_flag("weighted_rivals", self.weighted_rivals)
 
     def beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
@@ -348,7 +359,8 @@ def _median(values: np.ndarray) -> float:
 
 def structure_correlation(reference_edges: np.ndarray, reference_measured: np.ndarray,
                           current_edges: np.ndarray, current_measured: np.ndarray,
-                          motion: Motion | None = None) -> tuple[float, float]:
+                          motion: Motion | None = None,
+                          weighted: bool = False) -> tuple[float, float]:
     """Correlation of the reference's and the compensated current frame's edge images.
 
     The current frame's :func:`edge_image` is compensated by ``motion`` (the inverse warp,
@@ -366,6 +378,12 @@ def structure_correlation(reference_edges: np.ndarray, reference_measured: np.nd
         :func:`edge_image` of the current frame.
     motion : Motion, optional
         The estimate to check (docs/design.md convention); None: the frames as they are.
+    weighted : bool, optional
+        Normalise by the whole frames' edges, sqrt(sum(A²) sum(B²)) over every measured pixel
+        of each frame, rather than by the overlap's: the cosine similarity times the geometric
+        mean of the shares of each frame's edges (sum of squares) that the overlap holds, as
+        :meth:`Verifier.shift_rival` weighs its shifts. A motion that lines up part of the
+        frames well then scores below one that lines up most of them about as well.
 
     Returns
     -------
@@ -374,6 +392,9 @@ def structure_correlation(reference_edges: np.ndarray, reference_measured: np.nd
     overlap : float
         Share of the reference's measured pixels that are measured in both.
     """
+    if weighted:
+        energies = float(np.dot(reference_edges.ravel(), reference_edges.ravel())) * float(
+            np.dot(current_edges.ravel(), current_edges.ravel()))
     if motion is not None:
         height, width = reference_edges.shape
         matrix = motion_matrix(motion, reference_edges.shape)
@@ -388,7 +409,8 @@ def structure_correlation(reference_edges: np.ndarray, reference_measured: np.nd
     overlap = cv2.countNonZero(both) / n_reference if n_reference else 0.0
     a = (reference_edges * both).ravel()
     b = (current_edges * both).ravel()
-    norm = math.sqrt(float(np.dot(a, a)) * float(np.dot(b, b)))
+    norm = math.sqrt(energies) if weighted else math.sqrt(float(np.dot(a, a))
+                                                          * float(np.dot(b, b)))
     return (float(np.dot(a, b)) / norm if norm > 0 else -1.0), overlap
 
 
@@ -827,6 +849,9 @@ class Verifier:
                 failed = "ambiguous"
                 diagnostics.update(verify_candidate=rival[0].as_tuple(),
                                    verify_candidate_correlation=rival[1])
+                if rival[2] is not None:  # the weighted correlations decided
+                    diagnostics.update(verify_candidate_weighted_correlation=rival[2][0],
+                                       verify_weighted_optimum_correlation=rival[2][1])
         if failed is None and (abs(float(wrap_angle_deg(motion.angle_deg))) > params.still_deg
                                or math.hypot(motion.dx, motion.dy) > params.still_px):
             still = (null_correlation >= optimum_correlation - params.null_margin
@@ -906,9 +931,11 @@ class Verifier:
                                  motion.dy + float(turned[1])), here, score, ridge, on_steps)
 
     def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
-                         optimum_correlation: float, beyond: bool) -> tuple[Motion, float] | None:
+                         optimum_correlation: float, beyond: bool
+                         ) -> tuple[Motion, float, tuple[float, float] | None] | None:
         """A motion at another rotation than ``motion`` that explains the frames about as well
-        or better, or None.
+        or better, with its correlation and, where the weighted correlations decided
+        (``weighted_rivals``), its weighted correlation and the optimum's; or None.
 
         The :meth:`candidate` of the grid of angles is searched for every estimate, however
         well its optimum (``optimum``, within the offset limits of ``motion``) scores: a false
@@ -923,7 +950,9 @@ class Verifier:
         better than one within it (a half turn can line up a point-symmetric object, say a
         box, as well as the truth). The candidate itself, on the grid, is no rival: a grid
         angle 2.5 degrees from a true turn lines the frames up almost as well as the turn
-        (docs/method.md, section 11, "Fresh seeds").
+        (docs/method.md, section 11, "Fresh seeds"). With ``weighted_rivals``, an end that
+        passes neither margin still wins when its correlation weighted by the shares of the
+        frames' edges its overlap holds exceeds the optimum's.
 
         A candidate within the offset limits of both ``optimum`` and the estimate agrees with
         the estimate and is not climbed: the climb from there ends at that optimum (of 393 such
@@ -960,7 +989,17 @@ class Verifier:
             return None
         correlation, refined = max(rivals, key=lambda rival: rival[0])
         margin = params.outside_margin if beyond else params.candidate_margin
-        return (refined, correlation) if correlation > optimum_correlation - margin else None
+        if correlation > optimum_correlation - margin:
+            return refined, correlation, None
+        if params.weighted_rivals:
+            at_optimum = structure_correlation(*self._reference, *current.edges, optimum,
+                                               weighted=True)[0]
+            for correlation, end in rivals:
+                weighted = structure_correlation(*self._reference, *current.edges, end,
+                                                 weighted=True)[0]
+                if weighted > at_optimum:
+                    return end, correlation, (weighted, at_optimum)
+        return None
 
     def _beyond_search(self, motion: Motion) -> bool:
         """Whether ``motion`` turns beyond the searched angles ``candidate_angles_deg`` by more

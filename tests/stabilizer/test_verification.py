@@ -236,7 +236,14 @@ def test_a_half_turn_that_lines_up_a_symmetric_object_fails():
     lead = (checked.diagnostics["verify_candidate_correlation"]
             - checked.diagnostics["verify_optimum_correlation"])
     assert 0.0 < lead < 0.05
-    assert Verifier(reference, VerificationParams(outside_margin=-0.05))(current, half_turn).ok
+    stricter = VerificationParams(outside_margin=-0.05, weighted_rivals=False)
+    assert Verifier(reference, stricter)(current, half_turn).ok
+    # The truth lines up the box and more of the frames' edges than the half turn's optimum
+    # does: weighted by those shares, it is a rival whatever the margin.
+    weighted = Verifier(reference, replace(stricter, weighted_rivals=True))(current, half_turn)
+    assert weighted.diagnostics["verify_failed"] == "ambiguous"
+    assert (weighted.diagnostics["verify_candidate_weighted_correlation"]
+            > weighted.diagnostics["verify_weighted_optimum_correlation"])
     assert Verifier(reference, VerificationParams(candidate_margin=-0.05))(
         current, half_turn).diagnostics["verify_failed"] == "ambiguous"
 
@@ -325,7 +332,9 @@ def test_a_sideways_estimate_along_a_ridge_without_a_second_peak_is_ambiguous(se
              @ [rival.dx - sideways.dx, rival.dy - sideways.dy]) / 2.0
     np.testing.assert_allclose(shift, np.round(shift), rtol=0, atol=1e-9)
     assert np.abs(shift).max() >= 1.0
-    assert Verifier(reference, VerificationParams(ridge_margin=-1.0))(current, sideways).ok
+    # (The grid search's candidate, weighted by the edges its overlap holds, is a rival too.)
+    without = VerificationParams(ridge_margin=-1.0, weighted_rivals=False)
+    assert Verifier(reference, without)(current, sideways).ok
 
 
 @pytest.mark.parametrize("seeds, shape, sideways", [
@@ -375,6 +384,45 @@ def test_a_shift_that_only_the_weak_responses_pin_down_is_ambiguous():
         assert Verifier(reference, without)(current, estimate).ok
 
 
+def test_a_repeated_structure_lined_up_one_period_off_is_ambiguous():
+    """The office of scene seed 2166 (`paper_like` gait, frames 583 and 612, turning): a shelf
+    whose boards repeat up the view. `t2fuzzy` answered 61 px in y where the camera moved -5 px:
+    one board's spacing off. Its overlap holds the shelf alone and correlates better than the
+    truth's, which holds a near box's parallax too; weighted by the shares of the frames' edges
+    the overlaps hold, the grid search's candidate, climbed to the truth, scores higher, and the
+    estimate is ambiguous. Without the weights it passed."""
+    reference, current = walking_frames("office_paper_like_2166", 583, 612)
+    estimate = Motion(3.9496, 37.345, 61.066)
+    truth = Motion(4.2073, 35.644, -5.007)
+    checked = Verifier(reference)(current, estimate).diagnostics
+    assert checked["verify_failed"] == "ambiguous"
+    rival = Motion(*checked["verify_candidate"])
+    assert abs(rival.dy - truth.dy) < 2.0 and abs(rival.angle_deg - truth.angle_deg) < 1.0
+    assert checked["verify_candidate_correlation"] < checked["verify_optimum_correlation"] - 0.05
+    assert (checked["verify_candidate_weighted_correlation"]
+            > checked["verify_weighted_optimum_correlation"])
+    assert Verifier(reference, VerificationParams(weighted_rivals=False))(current, estimate).ok
+
+
+def test_the_weighted_correlation_is_the_cosine_times_the_shares_the_overlap_holds():
+    """Unmoved, the weighted correlation is the correlation (the overlap holds every edge);
+    shifted by half the frame, the overlap holds part of each frame's edges, and the weighted
+    correlation is the cosine times the geometric mean of those shares."""
+    edges, measured = edge_image(REFERENCE, 2.0, 5.0)
+    assert structure_correlation(edges, measured, edges, measured, weighted=True)[0] == \
+        pytest.approx(1.0)
+    shift = Motion(0.0, 88.0, 0.0)
+    cosine, _ = structure_correlation(edges, measured, edges, measured, shift)
+    weighted, _ = structure_correlation(edges, measured, edges, measured, shift, weighted=True)
+    moved = cv2.warpAffine(edges, np.float32([[1, 0, -88], [0, 1, 0]]), edges.shape[::-1])
+    both = measured.astype(bool) & (cv2.warpAffine(measured, np.float32([[1, 0, -88], [0, 1, 0]]),
+                                                   edges.shape[::-1]) > 0)
+    shares = (np.square(edges[both]).sum() / np.square(edges).sum(),
+              np.square(moved[both]).sum() / np.square(edges).sum())
+    assert weighted == pytest.approx(cosine * math.sqrt(shares[0] * shares[1]), rel=1e-4)
+    assert weighted < cosine
+
+
 def test_a_pinned_estimate_passes_the_ridge_test():
     """The true motion of a scene of several objects: shifts beyond the offset limits score
     clearly lower than the estimate, so the ridge test does not fail it."""
@@ -422,7 +470,8 @@ def test_candidate_margin_is_how_much_worse_a_rival_may_be_and_still_fail_the_es
     assert lead > 0.02  # the rival is the better of the two here
 
     def checked(margin: float) -> Motion:
-        return Verifier(reference, VerificationParams(candidate_margin=margin))(current, wrong)
+        params = VerificationParams(candidate_margin=margin, weighted_rivals=False)
+        return Verifier(reference, params)(current, wrong)
 
     assert checked(-lead + 0.01).diagnostics["verify_failed"] == "ambiguous"
     assert checked(-lead - 0.01).ok
