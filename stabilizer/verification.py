@@ -379,8 +379,9 @@ def structure_correlation(reference_edges: np.ndarray, reference_measured: np.nd
     motion : Motion, optional
         The estimate to check (docs/design.md convention); None: the frames as they are.
     weighted : bool, optional
-        Normalise by the whole frames' edges, sqrt(sum(A²) sum(B²)) over every measured pixel
-        of each frame, rather than by the overlap's: the cosine similarity times the geometric
+        Normalise by the whole frames' edges, sqrt(sum(A²) sum(B²)) over each whole frame
+        (its edges are 0 where unmeasured, as :func:`edge_image` makes them), rather than by
+        the overlap's: the cosine similarity times the geometric
         mean of the shares of each frame's edges (sum of squares) that the overlap holds, as
         :meth:`Verifier.shift_rival` weighs its shifts. A motion that lines up part of the
         frames well then scores below one that lines up most of them about as well.
@@ -776,7 +777,9 @@ class Verifier:
         ``"correlation"``, ``"not_optimum"``, ``"depth"``, ``"parallax"``, ``"ambiguous"`` or
         ``"no_motion"``: the first test failed; a turn beyond the searched angles without a
         convincing optimum adds ``verify_beyond_search`` (True), a rival ``verify_candidate`` and
-        ``verify_candidate_correlation``, and a rival shift (:meth:`shift_rival`, whose scores are
+        ``verify_candidate_correlation`` (and, where the weighted correlations decided,
+        ``verify_candidate_weighted_correlation`` and ``verify_weighted_optimum_correlation``),
+        and a rival shift (:meth:`shift_rival`, whose scores are
         its own) ``verify_shift_correlation``, the estimate's score on the same scale,
         ``verify_ridge`` and ``verify_ridge_on_steps``) and the rejected estimate as
         ``unverified_motion``. A Motion that is already a failure is returned as it is."""
