@@ -16,6 +16,7 @@ floors, Known limits) quote the result.
 from __future__ import annotations
 
 import itertools
+import math
 import statistics
 import sys
 from multiprocessing import Pool
@@ -32,8 +33,6 @@ def walk(gait: str, direction_deg: float, seed: int, seconds: float) -> tuple[st
     """One walk: "stands" or "fell at T s" (T from the start of the simulation), and the
     median of how far the floor estimate points off the slope's direction over its last
     ``WINDOW_S``, degrees (NaN after a fall, or while the estimate is level)."""
-    import math
-
     from sim.world.assembly import assemble, compile_world
     from sim.world.scenes import build_scene
     from sim.world.scenes.floor import Floor
@@ -83,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         for line, off_deg in pool.imap(_walk, jobs):
             print(line, flush=True)
             offs.append(off_deg)
-    measured = [(off, job) for off, job in zip(offs, jobs) if off == off]  # NaN: fell, or level
+    measured = [(off, job) for off, job in zip(offs, jobs)
+                if not math.isnan(off)]  # NaN: fell, or level
     if measured:
         worst, (gait, direction, seed, _) = max(measured)
         median = statistics.median(off for off, _ in measured)

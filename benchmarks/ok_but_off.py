@@ -53,18 +53,21 @@ def looked_at(suite_dir: Path) -> list[dict]:
     """One dict per "ok but off" frame of the suite in ``suite_dir``: the suite's figures and
     the check's verdicts on the sensor's and the exact depth."""
     from sim.harness.sequence import load_sequence
+    from sim.harness.suite.run import SEQUENCE_FOLDER
+    from sim.harness.suite.tables import TABLE_JSON
+    from sim.harness.sweep import RUNS_FOLDER
     from stabilizer import Motion
     from stabilizer.verification import Verifier
 
-    listed = json.loads((suite_dir / "suite.json").read_text(encoding="utf-8"))["large_errors"]
+    listed = json.loads((suite_dir / TABLE_JSON).read_text(encoding="utf-8"))["large_errors"]
     found = []
     for method, errors in listed.items():
         for entry in errors["frames"]:
-            run = suite_dir / "runs" / entry["sequence"]
+            run = suite_dir / RUNS_FOLDER / entry["sequence"]
             with open(run / "frames.csv", newline="", encoding="utf-8") as frames:
                 row = next(row for row in csv.DictReader(frames) if row["method"] == method
                            and int(row["frame_index"]) == entry["frame"])
-            sequence = load_sequence(run / "sequence")
+            sequence = load_sequence(run / SEQUENCE_FOLDER)
             reference = sequence.frame(int(row["reference_index"]))
             current = sequence.frame(entry["frame"])
             estimate = Motion(*(float(row[key]) for key in ("est_angle_deg", "est_dx_px",
@@ -130,11 +133,13 @@ def write_pictures(found: list[dict], suite_dir: Path, out: Path) -> list[Path]:
     ``out/<method>__<sequence>__<frame>.png`` (each written whole or not at all)."""
     from sim.atomic import atomic_path
     from sim.harness.sequence import load_sequence
+    from sim.harness.suite.run import SEQUENCE_FOLDER
+    from sim.harness.sweep import RUNS_FOLDER
     from stabilizer import Motion
 
     written = []
     for row in found:
-        sequence = load_sequence(suite_dir / "runs" / row["sequence"] / "sequence")
+        sequence = load_sequence(suite_dir / RUNS_FOLDER / row["sequence"] / SEQUENCE_FOLDER)
         path = out / f"{row['method']}__{row['sequence']}__{row['frame']}.png"
         image = picture(sequence.frame(row["reference_frame"]).disparity8,
                         sequence.frame(row["frame"]).disparity8,
@@ -180,11 +185,12 @@ def main(argv: list[str] | None = None) -> int:
                              "estimate and by the truth) into DIR")
     args = parser.parse_args(argv)
     from sim.atomic import check_output_path, prepare_output_dir
+    from sim.harness.suite.tables import TABLE_JSON
 
     try:
         if args.figures is not None:  # checked before anything is made
             check_output_path(args.figures, "--figures")
-        if not (args.suite_dir / "suite.json").is_file():
+        if not (args.suite_dir / TABLE_JSON).is_file():
             raise ValueError(f"{args.suite_dir}: no suite.json; accepted: a folder `egostab "
                              f"suite` wrote")
         if args.figures is not None:

@@ -32,12 +32,13 @@ FAR_DEG, FAR_PX = 5.0, 10.0
 
 def run_folders(paths: list[Path]) -> list[Path]:
     """The run folders named, a suite folder standing for its ``runs/*``."""
+    from sim.harness.suite.tables import TABLE_JSON
     from sim.harness.sweep import RUNS_FOLDER
 
     folders = []
     for path in paths:
         folders += sorted(p for p in (path / RUNS_FOLDER).iterdir() if p.is_dir()) \
-            if (path / "suite.json").is_file() else [path]
+            if (path / TABLE_JSON).is_file() else [path]
     return folders
 
 
@@ -98,6 +99,7 @@ def table(figures: dict[str, dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     from sim.command_line import OneLineParser, path_option
+    from sim.harness.report import FAILURES_JSONL, FRAMES_CSV
 
     parser = OneLineParser(prog="rejected_estimates.py", description=__doc__.splitlines()[0])
     parser.add_argument("folders", type=path_option, nargs="+",
@@ -107,9 +109,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     folders = run_folders(args.folders)
     for folder in folders:
-        if not ((folder / "frames.csv").is_file() and (folder / "failures.jsonl").is_file()):
-            parser.error(f"{folder}: no frames.csv and failures.jsonl; accepted: run folders "
-                         f"or suite folders that egostab wrote")
+        if not ((folder / FRAMES_CSV).is_file() and (folder / FAILURES_JSONL).is_file()):
+            parser.error(f"{folder}: no {FRAMES_CSV} and {FAILURES_JSONL}; accepted: run "
+                         f"folders or suite folders that egostab wrote")
     print(table(rejected(folders, args.where_ok)))
     return 0
 

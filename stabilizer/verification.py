@@ -316,9 +316,9 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
     scale = clip_factor * _median(responses) if responses.size else 0.0
     limit = max(scale, MIN_CLIP)
     floor = floor_levels * step_response(sigma_px)
-    weak = np.abs(laplacian) < floor
+    weak = np.abs(laplacian) < floor if floor > 0 else None  # no response is below a floor of 0
     edges = np.clip(laplacian, -limit, limit, out=laplacian)
-    if not weak.any():
+    if weak is None or not weak.any():
         return edges, edges, measured, limit < floor
     strong = edges.copy()
     strong[weak] = 0.0
