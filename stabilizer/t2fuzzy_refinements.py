@@ -100,7 +100,10 @@ class Refinements:
             within one step of an earlier candidate are not scored, and groups of angle
             estimates are split at gaps wider than two steps.
         search_max_steps: most steps of the climb at each resolution, at most 1000
-            (:data:`~stabilizer.inputs.MAX_ITERATIONS`); default 8.
+            (:data:`~stabilizer.inputs.MAX_ITERATIONS`); default 14, the steps that carry a
+            climb from rotation 0, the candidate every search scores, to ``max_rotation_deg``
+            (14 x 1.5 >= 20 degrees): a shorter climb stops short of the turns it may reach
+            (docs/method.md, section 12, "Climbs long enough for the turn").
         search_candidates: how many of the largest groups of angle estimates give a candidate;
             default 3.
         common_disc_passes: passes of stages 3-6 on a common disc (:func:`common_disc`): the
@@ -199,7 +202,7 @@ class Refinements:
 
     rotation_search: bool = True
     search_step_deg: float = 1.5
-    search_max_steps: int = 8
+    search_max_steps: int = 14
     search_candidates: int = 3
     common_disc_passes: int = 0
     extra_disc_passes: int = 0

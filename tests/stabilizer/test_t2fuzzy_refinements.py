@@ -211,6 +211,17 @@ def test_the_climb_ends_at_the_vertex_with_the_shift_interpolated_there():
     assert template.asked[-1] == (3.0, (15.0, -7.5))
 
 
+def test_the_default_climb_reaches_the_rotation_range_from_the_identity():
+    """From rotation 0, the candidate every search scores, the default climb reaches a peak
+    at 19 deg, just inside ``max_rotation_deg`` (20), and ends there at a local maximum."""
+    smoothed = _smoothed(_scene())
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements())
+    template = _ParabolicPeak(19.0)
+    angle, _, converged = search._climb(template, None, 0.0, template.match(None, 0.0))
+    assert converged and angle == pytest.approx(19.0)
+
+
 def test_the_candidates_are_the_means_of_the_largest_groups_of_angles():
     """Groups split at gaps wider than two climbing steps (3 deg), largest first."""
     reference = _scene()
