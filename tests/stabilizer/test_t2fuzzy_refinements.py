@@ -197,15 +197,20 @@ class _ParabolicPeak:
                              -(angle_deg - self.peak_deg) ** 2)
 
 
+def _default_climb_from_zero(template: _ParabolicPeak):
+    """The default search's climb on ``template`` from rotation 0: (angle, match, converged)."""
+    smoothed = _smoothed(_scene())
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements())
+    return search._climb(template, None, 0.0, template.match(None, 0.0))
+
+
 def test_the_climb_ends_at_the_vertex_with_the_shift_interpolated_there():
     """Steps of 1.5 deg from 0 towards a peak at 2 deg: the climb stops at 1.5 (above 0 and
     3), the parabola through the three puts the rotation at 2 and the shift where it is at 2
     (20, -10), between the samples'; each step searches near the shift of its new centre."""
-    smoothed = _smoothed(_scene())
-    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
-                            Refinements())
     template = _ParabolicPeak(2.0)
-    angle, match, converged = search._climb(template, None, 0.0, template.match(None, 0.0))
+    angle, match, converged = _default_climb_from_zero(template)
     assert converged and angle == pytest.approx(2.0)
     assert (match.x, match.y) == (pytest.approx(20.0), pytest.approx(-10.0))
     assert template.asked[-1] == (3.0, (15.0, -7.5))
@@ -214,11 +219,7 @@ def test_the_climb_ends_at_the_vertex_with_the_shift_interpolated_there():
 def test_the_default_climb_reaches_the_rotation_range_from_the_identity():
     """From rotation 0, the candidate every search scores, the default climb reaches a peak
     at 19 deg, just inside ``max_rotation_deg`` (20), and ends there at a local maximum."""
-    smoothed = _smoothed(_scene())
-    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
-                            Refinements())
-    template = _ParabolicPeak(19.0)
-    angle, _, converged = search._climb(template, None, 0.0, template.match(None, 0.0))
+    angle, _, converged = _default_climb_from_zero(_ParabolicPeak(19.0))
     assert converged and angle == pytest.approx(19.0)
 
 
