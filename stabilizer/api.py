@@ -137,10 +137,15 @@ class Stabilizer:
         measured = self._verifier.measure(current)
         checked = self._verifier.check(measured, motion)
         second_look = getattr(self._estimator, "second_look", None)
-        again = second_look(current, checked) if second_look and checked.ok else None
+        again = second_look(current, checked) if second_look else None
         if again is None:
             return checked
         rechecked = self._verifier.check(measured, again)
+        if not checked.ok:  # a second look at a rejected estimate: kept if it passes
+            return rechecked if rechecked.ok else replace(checked, diagnostics=dict(
+                checked.diagnostics, second_look=again.as_tuple(),
+                second_look_failed=rechecked.diagnostics.get("verify_failed",
+                                                             rechecked.status)))
         if not rechecked.ok:
             failed = rechecked.diagnostics.get("verify_failed", rechecked.status)
         elif (rechecked.diagnostics["verify_correlation"]

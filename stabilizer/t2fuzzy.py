@@ -409,6 +409,7 @@ class T2FuzzyEstimator:
         self.search_without_estimates = (refinements.rotation_search
                                          and refinements.search_without_estimates)
         self.doubtful_offset = float(refinements.doubtful_offset_deg)
+        self.climb_from_optimum = bool(refinements.climb_from_optimum)
 
         self._reference_analysis = self.analyse(reference)
 
@@ -528,37 +529,46 @@ class T2FuzzyEstimator:
 
     def second_look(self, current: np.ndarray, checked: Motion) -> Motion | None:
         """A new estimate of ``current`` where the trust check doubts the first, or None
-        (refinement ``doubtful_offset_deg``).
+        (refinements ``doubtful_offset_deg`` and ``climb_from_optimum``).
 
-        ``checked`` is this estimator's estimate of ``current`` after it passed the trust check
-        (:meth:`stabilizer.verification.Verifier.check`). When the check's optimum lies more than
-        ``doubtful_offset_deg`` from it in rotation (``verify_offset_deg``), the estimate is
-        climbed over rotation on the masked FNCC of the whole overlap at full resolution
-        (:meth:`RotationSearch.climb_on_overlap`): every pixel both frames measure then fixes
-        the motion, not only the central template's, whose peak may lie a few degrees off. The
-        climb's end is the new estimate, with the first one's diagnostics (not the check's), its
-        ``ncc_peak`` and ``ncc_at_border`` and ``second_look_from`` (the estimate it started
-        from). None when the estimate failed the check or the check does not doubt it, when the
-        climb finds no maximum or its peak is below ``min_ncc``, and without the wide search.
-        :class:`stabilizer.Stabilizer` checks the new estimate and keeps it if it passes and
-        lines up the frames' depth edges at least as well as the first (docs/method.md, section
-        12, "A second look").
+        ``checked`` is this estimator's estimate of ``current`` after the trust check
+        (:meth:`stabilizer.verification.Verifier.check`). When it passed but the check's optimum
+        lies more than ``doubtful_offset_deg`` from it in rotation (``verify_offset_deg``), the
+        estimate is climbed over rotation on the masked FNCC of the whole overlap at full
+        resolution (:meth:`RotationSearch.climb_on_overlap`): every pixel both frames measure
+        then fixes the motion, not only the central template's, whose peak may lie a few degrees
+        off. When the check rejected it as ``"not_optimum"`` (its optimum, ``verify_optimum``,
+        beyond the check's offset limits) and ``climb_from_optimum`` is on, the same climb starts
+        from that optimum. The climb's end is the new estimate, with the first one's own
+        diagnostics (not the check's), its ``ncc_peak`` and ``ncc_at_border`` and
+        ``second_look_from`` (the motion it started from). None otherwise, when the climb finds
+        no maximum or its peak is below ``min_ncc``, and without the wide search.
+        :class:`stabilizer.Stabilizer` checks the new estimate and keeps it if it passes and,
+        after a first estimate that passed, lines up the frames' depth edges at least as well
+        (docs/method.md, section 12, "A second look" and "A second look from the check's
+        optimum").
         """
-        offset = checked.diagnostics.get("verify_offset_deg")
-        if (not checked.ok or self.rotation_search is None or self.rotation_search.wide is None
-                or offset is None or not offset > self.doubtful_offset):
+        if self.rotation_search is None or self.rotation_search.wide is None:
             return None
-        climbed = self.rotation_search.climb_on_overlap(checked.angle_deg,
-                                                        (checked.dx, checked.dy),
+        diagnostics = checked.diagnostics
+        if checked.ok:
+            offset = diagnostics.get("verify_offset_deg")
+            if offset is None or not offset > self.doubtful_offset:
+                return None
+            start = checked.as_tuple()
+        elif self.climb_from_optimum and diagnostics.get("verify_failed") == "not_optimum":
+            start = tuple(diagnostics["verify_optimum"])
+        else:
+            return None
+        climbed = self.rotation_search.climb_on_overlap(start[0], (start[1], start[2]),
                                                         self._smooth(current), current > 0)
         if climbed is None or not climbed[1].peak >= self.min_ncc:
             return None
         angle, top = climbed
-        kept = {key: value for key, value in checked.diagnostics.items()
-                if not key.startswith("verify_")}
+        kept = {key: value for key, value in diagnostics.items()
+                if not key.startswith("verify_") and key != "unverified_motion"}
         return Motion(angle, top.x, top.y, diagnostics=dict(
-            kept, ncc_peak=top.peak, ncc_at_border=top.at_border,
-            second_look_from=checked.as_tuple()))
+            kept, ncc_peak=top.peak, ncc_at_border=top.at_border, second_look_from=start))
 
     def _common_disc_pass(self, motion: Motion, reference: FrameAnalysis, frame: FrameAnalysis,
                           current: np.ndarray, image: np.ndarray,

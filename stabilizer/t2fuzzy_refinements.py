@@ -43,7 +43,9 @@ sections 8 and 12; ``t2fuzzy_paper`` (:meth:`Refinements.off`) runs without them
   more than this far in rotation from the optimum of the check's own measure is climbed once
   more over rotation on the masked FNCC of the whole overlap at full resolution
   (:meth:`RotationSearch.climb_on_overlap`) and checked again
-  (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`).
+  (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). An estimate the check rejects
+  because its optimum lies beyond the check's offset limits gets the same climb from that
+  optimum (``climb_from_optimum``).
 - Confidence of the search, each turning a doubtful estimate into a failure: the rotation range
   (``max_rotation_deg``) bounds the candidates and the climb; a climb that ends without a local
   maximum of the correlation is ``"rotation_unconverged"`` (``fail_unconverged``); an estimate
@@ -192,6 +194,12 @@ class Refinements:
             (:meth:`~stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). The climb then runs
             only where the check doubts the estimate. ``math.inf``: off. Default 1 degree
             (docs/method.md, section 12, "A second look").
+        climb_from_optimum: with the wide search and the trust check, an estimate the check
+            rejects as ``"not_optimum"`` (the optimum of its measure near the estimate,
+            ``verify_optimum``, lies beyond its offset limits) gets a second look from that
+            optimum: the climb of ``final_overlap_climb``, on this method's own FNCC, starts
+            there, and its end replaces the estimate if it passes the check. Default True
+            (docs/method.md, section 12, "A second look from the check's optimum").
         astray_climb_recovery: with the wide search, when the central template finds no peak
             near the shift that the half-resolution climb reached, and the whole overlap
             correlates lower at the climb's rotation than at the wide search's best candidate,
@@ -221,11 +229,13 @@ class Refinements:
     clip_min_spread: float = 20.0
     final_overlap_climb: bool = False
     doubtful_offset_deg: float = 1.0
+    climb_from_optimum: bool = True
     astray_climb_recovery: bool = True
 
     def __post_init__(self):
         for name in ("rotation_search", "search_without_estimates", "fail_unconverged",
-                     "resolve_disagreement", "final_overlap_climb", "astray_climb_recovery"):
+                     "resolve_disagreement", "final_overlap_climb", "climb_from_optimum",
+                     "astray_climb_recovery"):
             check_flag(name, getattr(self, name))
         for name in ("search_candidates", "wide_search_px", "large_template_border_px"):
             check_integer(name, getattr(self, name), 0)
@@ -252,7 +262,8 @@ class Refinements:
                    wide_search_px=0, search_without_estimates=False, fail_unconverged=False,
                    max_shift_disagreement_px=0.0, large_template_border_px=0,
                    resolve_disagreement=False, clip_sigmas=0.0,
-                   doubtful_offset_deg=math.inf, astray_climb_recovery=False)
+                   doubtful_offset_deg=math.inf, climb_from_optimum=False,
+                   astray_climb_recovery=False)
 
     @property
     def needs_coarse_template(self) -> bool:

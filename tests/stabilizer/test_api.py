@@ -205,6 +205,29 @@ def test_a_second_look_that_fails_the_check_leaves_the_first_estimate():
                                                         "ambiguous"}
 
 
+def test_a_second_look_at_a_rejected_estimate_that_passes_the_check_replaces_it():
+    """An estimate 12 degrees off fails the check; the estimator's second look, the truth,
+    passes it and is the result."""
+    wrong = Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy)
+    estimator = _SecondLooking(wrong, TRUTH)
+    result = _stabilizer_with(estimator).estimate(CURRENT)
+    assert [checked.ok for checked in estimator.looked_at] == [False]
+    assert result.ok and result.as_tuple() == TRUTH.as_tuple()
+
+
+def test_a_second_look_at_a_rejected_estimate_that_fails_too_leaves_the_rejection():
+    """Both the estimate and its second look, 12 and 10 degrees off, fail the check: the first
+    rejection is the result, the second look recorded."""
+    wrong = Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy)
+    still_wrong = Motion(TRUTH.angle_deg - 10.0, TRUTH.dx, TRUTH.dy)
+    result = _stabilizer_with(_SecondLooking(wrong, still_wrong)).estimate(CURRENT)
+    assert result.status == "unverified"
+    assert result.diagnostics["unverified_motion"] == wrong.as_tuple()
+    assert result.diagnostics["second_look"] == still_wrong.as_tuple()
+    assert result.diagnostics["second_look_failed"] in {"not_optimum", "correlation",
+                                                        "ambiguous"}
+
+
 def test_a_second_look_that_lines_the_edges_up_worse_leaves_the_first_estimate():
     """A second look 1 degree off the truth passes the check, but the truth, the first
     estimate, lines the depth edges up better and stays."""
@@ -245,13 +268,12 @@ def test_second_look_rivals_is_a_flag():
         VerificationParams(strong_edge_ridge=1)
 
 
-def test_no_second_look_after_a_failed_check_without_the_check_or_for_a_failure():
-    """An estimate the check fails gets no second chance, even one that would pass; without the
-    check nothing doubts an estimate; a method's own failure stays one."""
-    rejected = _SecondLooking(Motion(TRUTH.angle_deg + 12.0, TRUTH.dx, TRUTH.dy), TRUTH)
-    assert _stabilizer_with(rejected).estimate(CURRENT).status == "unverified"
+def test_no_second_look_without_the_check_or_for_a_failure():
+    """Without the check nothing doubts an estimate; a method's own failure stays one. (Which
+    estimates the check passed or rejected get a second look, the estimator decides:
+    ``T2FuzzyEstimator.second_look``.)"""
     without = _SecondLooking(TRUTH, Motion(0.0, 0.0, 0.0))
     assert _stabilizer_with(without, None).estimate(CURRENT).as_tuple() == TRUTH.as_tuple()
     failing = _SecondLooking(Motion.failed("no_structure"), TRUTH)
     assert _stabilizer_with(failing).estimate(CURRENT).status == "no_structure"
-    assert rejected.looked_at == without.looked_at == failing.looked_at == []
+    assert without.looked_at == failing.looked_at == []

@@ -511,21 +511,50 @@ def test_a_second_look_climbs_a_doubted_estimate_to_the_whole_overlaps_peak():
     assert not any(key.startswith("verify_") for key in again.diagnostics)
 
 
+def _not_optimum(motion: Motion, optimum: Motion) -> Motion:
+    """``motion`` as the trust check rejects it, its optimum ``optimum`` beyond the limits."""
+    return Motion.failed("unverified", verify_failed="not_optimum",
+                         verify_optimum=optimum.as_tuple(), unverified_motion=motion.as_tuple(),
+                         ncc_peak=0.9)
+
+
 def test_no_second_look_unless_the_check_passed_and_doubts_the_estimate():
-    """Within ``doubtful_offset_deg`` of the check's optimum, after a failed check, with the
-    setting off, or in the paper's pipeline, there is no second look."""
+    """Within ``doubtful_offset_deg`` of the check's optimum, after a check failed by another
+    test than the optimum's, with the settings off, or in the paper's pipeline, there is no
+    second look."""
     reference = _scene()
     truth = Motion(8.0, 10.0, -5.0)
     current = apply_motion(reference, truth)
     first = Motion(truth.angle_deg - 3.0, truth.dx, truth.dy)
     estimator = T2FuzzyEstimator(reference)
     assert estimator.second_look(current, _doubted(first, 0.9)) is None
-    failed = Motion.failed("unverified", verify_failed="not_optimum", verify_offset_deg=3.0,
+    failed = Motion.failed("unverified", verify_failed="correlation", verify_offset_deg=3.0,
                            unverified_motion=first.as_tuple())
     assert estimator.second_look(current, failed) is None
     for refinements in (Refinements(doubtful_offset_deg=math.inf), Refinements.off()):
         assert T2FuzzyEstimator(reference, refinements=refinements).second_look(
             current, _doubted(first, 3.0)) is None
+    for refinements in (Refinements(climb_from_optimum=False), Refinements.off()):
+        assert T2FuzzyEstimator(reference, refinements=refinements).second_look(
+            current, _not_optimum(first, truth)) is None
+
+
+def test_a_second_look_climbs_from_the_checks_optimum_after_a_not_optimum_rejection():
+    """An estimate 6 degrees and 8 px off that the check rejected as not at its optimum, which
+    lies 2 degrees and a few pixels from the truth: the climb on the whole overlap starts from
+    that optimum and ends at the truth; the new estimate keeps none of the check's diagnostics
+    and records where it started."""
+    reference = _scene()
+    truth = Motion(8.0, 10.0, -5.0)
+    current = apply_motion(reference, truth)
+    first = Motion(truth.angle_deg - 6.0, truth.dx + 8.0, truth.dy)
+    optimum = Motion(truth.angle_deg - 2.0, truth.dx + 2.0, truth.dy - 1.0)
+    again = T2FuzzyEstimator(reference).second_look(current, _not_optimum(first, optimum))
+    assert again.ok
+    np.testing.assert_allclose(again.as_tuple(), truth.as_tuple(), atol=0.3)
+    assert again.diagnostics["second_look_from"] == optimum.as_tuple()
+    assert not any(key.startswith("verify_") or key == "unverified_motion"
+                   for key in again.diagnostics)
 
 
 def test_a_climb_that_went_astray_is_climbed_again_on_the_whole_overlap():
