@@ -265,6 +265,7 @@ def test_off_is_the_paper_pipeline():
     assert not off.rotation_search and off.common_disc_passes == off.extra_disc_passes == 0
     assert off.wide_search_px == 0 and not off.search_without_estimates
     assert not off.fail_unconverged and not off.resolve_disagreement
+    assert not off.climb_from_optimum and Refinements().climb_from_optimum
     assert off.clip_sigmas == 0 and Refinements().clip_sigmas > 0
     assert Refinements().resolve_disagreement
     assert not off.needs_coarse_template and Refinements().needs_coarse_template
@@ -282,6 +283,7 @@ def test_off_is_the_paper_pipeline():
                                     {"extra_pass_trigger_deg": "5"}, {"wide_search_px": True},
                                     {"clip_sigmas": math.inf}, {"edge_tie_margin": -math.inf},
                                     {"doubtful_offset_deg": math.nan},
+                                    {"climb_from_optimum": 1},
                                     # Unbounded: the paper's pipeline's passes cycled for ever.
                                     {"common_disc_passes": 10**6}, {"extra_disc_passes": 10**6},
                                     {"search_max_steps": 10**9}])
