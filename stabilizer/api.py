@@ -6,14 +6,15 @@ before any work (each method has a smallest image side, all share the largest,
 trust check (:class:`stabilizer.verification.Verifier`, docs/method.md section 11), so that
 ``"ok"`` means the compensated current frame does line up with the reference. An estimator
 that has a ``second_look(current, checked) -> Motion | None`` method is offered every estimate
-that passed the check: a Motion it returns is a new estimate, checked in its turn, which
-replaces the first if it passes and lines up the frames' depth edges at least as well
-(``verify_correlation``; ``t2fuzzy`` takes a second look at the estimates the check doubts,
-:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`). One that passes but lines them up
-worse, beyond the check's offset limits of the first, is a rival: the estimate fails as
-``"ambiguous"`` (``VerificationParams.second_look_rivals``). A failed estimate gets no second
-look: a second chance to pass the check would let more wrong estimates through, so the frames
-that end ``"ok"`` are among those whose first estimate passed.
+it made, after the check: a Motion it returns is a new estimate, checked in its turn. After a
+first estimate that passed, it replaces the first if it passes and lines up the frames' depth
+edges at least as well (``verify_correlation``); one that passes but lines them up worse,
+beyond the check's offset limits of the first, is a rival: the estimate fails as
+``"ambiguous"`` (``VerificationParams.second_look_rivals``). After a rejected first estimate, it
+is the result if it passes. The estimator chooses where to look again: ``t2fuzzy`` at the
+estimates the check doubts, and from the check's own optimum at those it rejects as not at that
+optimum (:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`; docs/method.md, section 12,
+measures what the second chance lets through).
 
 ======================  ===========================================  ========================
 method                  estimator                                    smallest image side
