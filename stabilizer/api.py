@@ -142,13 +142,10 @@ class Stabilizer:
         if again is None:
             return checked
         rechecked = self._verifier.check(measured, again)
-        if not checked.ok:  # a second look at a rejected estimate: kept if it passes
-            return rechecked if rechecked.ok else replace(checked, diagnostics=dict(
-                checked.diagnostics, second_look=again.as_tuple(),
-                second_look_failed=rechecked.diagnostics.get("verify_failed",
-                                                             rechecked.status)))
         if not rechecked.ok:
             failed = rechecked.diagnostics.get("verify_failed", rechecked.status)
+        elif not checked.ok:  # a second look at a rejected estimate: kept if it passes
+            return rechecked
         elif (rechecked.diagnostics["verify_correlation"]
               < checked.diagnostics["verify_correlation"]):
             failed = "edges"  # the new estimate passes, but lines the depth edges up worse
