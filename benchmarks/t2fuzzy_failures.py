@@ -727,7 +727,8 @@ def main(argv: list[str] | None = None) -> int:
     swept.add_argument("--param", default="candidate_margin",
                        choices=["candidate_margin", "outside_margin", "ridge_margin",
                                 "null_margin", "full_resolution_travel_deg",
-                                "strong_edge_ridge", "weighted_rivals"])
+                                "strong_edge_ridge", "weighted_rivals",
+                                "plain_shift_rivals"])
     rivalled = commands.add_parser("rivals", help="second looks that pass with worse edges")
     rivalled.add_argument("folders", type=Path, nargs="+")
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")

@@ -158,6 +158,19 @@ class VerificationParams:
             structure alone and correlates higher than the truth, whose overlap holds near
             furniture's parallax too (docs/method.md, section 11, "Repeated structures").
             Default True; False: the unweighted correlations alone decide.
+        plain_shift_rivals: a stricter check, for whom a wrong ``"ok"`` costs more than a
+            failure. A peak of test 5's weighted shift surface beyond the offset limits
+            (:meth:`Verifier.shift_rival`) that scores below the margin there is then a rival
+            still when its plain masked NCC, not weighted, exceeds the best plain NCC within
+            the limits: it lines up less of the frames, and better; where the two measures
+            disagree, the check cannot tell which motion is right, as over the grid of angles
+            with ``weighted_rivals``. The weight is for a repeated structure lined up one
+            period off, whose smaller overlap correlates higher than the truth; but a wrong
+            shift whose overlap keeps more of a smooth wall and floor can outscore, weighted,
+            the truth that lines up the furniture's edges better. Default False: on the walks
+            the methods are tuned and checked on, it failed accurate estimates far more often
+            than wrong ones (docs/method.md, section 11, "Both measures"); True: the stricter
+            check.
         depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
             compensated current frame disagrees in depth with the reference when its disparity
             lies more than the larger of the first two (gray levels; a share of its own
@@ -224,6 +237,7 @@ class VerificationParams:
     second_look_rivals: bool = True
     strong_edge_ridge: bool = True
     weighted_rivals: bool = True
+    plain_shift_rivals: bool = False
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.
@@ -249,6 +263,7 @@ class VerificationParams:
         check_flag("second_look_rivals", self.second_look_rivals)
         check_flag("strong_edge_ridge", self.strong_edge_ridge)
         check_flag("weighted_rivals", self.weighted_rivals)
+        check_flag("plain_shift_rivals", self.plain_shift_rivals)
 
     def beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""
@@ -781,7 +796,8 @@ class Verifier:
         ``verify_candidate_weighted_correlation`` and ``verify_weighted_optimum_correlation``),
         and a rival shift (:meth:`shift_rival`, whose scores are
         its own) ``verify_shift_correlation``, the estimate's score on the same scale,
-        ``verify_ridge`` and ``verify_ridge_on_steps``) and the rejected estimate as
+        ``verify_ridge``, ``verify_ridge_on_steps`` and ``verify_plain_shift``) and the rejected
+        estimate as
         ``unverified_motion``. A Motion that is already a failure is returned as it is."""
         if not motion.ok:
             return motion
@@ -844,7 +860,8 @@ class Verifier:
                                    verify_candidate_correlation=rival.score,
                                    verify_shift_correlation=rival.estimate_score,
                                    verify_ridge=rival.ridge,
-                                   verify_ridge_on_steps=rival.on_steps)
+                                   verify_ridge_on_steps=rival.on_steps,
+                                   verify_plain_shift=rival.plain)
         if failed is None:  # the search costs most of the check: only for what passed so far
             rival = self._rival_candidate(current, motion, optimum, optimum_correlation,
                                            beyond)
@@ -895,7 +912,9 @@ class Verifier:
         flank of the estimate's own peak) that scores more than the best shift within them less
         ``candidate_margin`` is a rival: a second object like the one the estimate lined up, or
         a ridge along which the edges fit many shifts (a floor's horizon under a sideways
-        shift); the check cannot tell which motion is right. A ridge without a second peak (a
+        shift); the check cannot tell which motion is right. With ``plain_shift_rivals``, so is
+        such a peak whose plain NCC, not weighted, exceeds the best plain NCC within the offset
+        limits: it lines up less of the frames, and better. A ridge without a second peak (a
         single straight edge across the overlap) is a rival too: when no peak is, the best
         shift just beyond the offset limits of the best shift within them (up to 2 px farther)
         is one if its plain NCC, not weighted, is within ``ridge_margin`` of that best shift's,
@@ -912,6 +931,13 @@ class Verifier:
                              self._shifts.max_shift)
         if math.isfinite(here) and found.peak > here - self.params.candidate_margin:
             return self._shift_rival(motion, (found.x, found.y), here, found.peak)
+        if self.params.plain_shift_rivals:
+            plain_here = float(plain[self._within_offset].max())
+            lined_up = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, plain),
+                                    self._shifts.max_shift)
+            if math.isfinite(plain_here) and lined_up.peak > plain_here:
+                return self._shift_rival(motion, (lined_up.x, lined_up.y), plain_here,
+                                         lined_up.peak, plain=True)
         # No second peak; along a ridge there is none, but the next shifts score as high.
         ridge = _ridge_end(plain, self._within_offset, self._ring, self.params.ridge_margin)
         if ridge is None and self._step_shifts is not None and current is not None:
@@ -927,11 +953,13 @@ class Verifier:
 
     @staticmethod
     def _shift_rival(motion: Motion, shift: tuple[float, float], here: float, score: float,
-                     ridge: bool = False, on_steps: bool = False) -> ShiftRival:
+                     ridge: bool = False, on_steps: bool = False,
+                     plain: bool = False) -> ShiftRival:
         """The :class:`ShiftRival` of a half-resolution ``shift`` from ``motion``."""
         turned = rotation_matrix(math.radians(motion.angle_deg)) @ (2.0 * np.asarray(shift))
         return ShiftRival(Motion(motion.angle_deg, motion.dx + float(turned[0]),
-                                 motion.dy + float(turned[1])), here, score, ridge, on_steps)
+                                 motion.dy + float(turned[1])), here, score, ridge, on_steps,
+                          plain)
 
     def _rival_candidate(self, current: CurrentEdges, motion: Motion, optimum: Motion,
                          optimum_correlation: float, beyond: bool
@@ -1088,11 +1116,12 @@ class ShiftRival(NamedTuple):
         motion: the rival: the estimate's rotation; its shift (refined by a parabola along each
             axis for a peak), turned by that rotation, added to the estimate's.
         estimate_score: the best score within the offset limits of the estimate.
-        score: the rival's score, on the same scale (weighted for a peak, plain for a ridge;
-            -inf for a shift that cannot be scored).
+        score: the rival's score, on the same scale (weighted for a peak, plain for a ridge
+            and for ``plain``; -inf for a shift that cannot be scored).
         ridge: whether it continues a ridge rather than being a peak of its own.
         on_steps: whether that ridge is the strong edges' (``strong_edge_ridge``); the scores
             are then theirs.
+        plain: whether a peak won on its plain NCC (``plain_shift_rivals``).
     """
 
     motion: Motion
@@ -1100,6 +1129,7 @@ class ShiftRival(NamedTuple):
     score: float
     ridge: bool
     on_steps: bool
+    plain: bool
 
 
 def _ridge_end(plain: np.ndarray, within: np.ndarray, ring: tuple[np.ndarray, np.ndarray],

@@ -404,6 +404,34 @@ def test_a_repeated_structure_lined_up_one_period_off_is_ambiguous():
     assert Verifier(reference, VerificationParams(weighted_rivals=False))(current, estimate).ok
 
 
+@pytest.mark.parametrize("plain_there, switch, rival", [
+    (0.6, True, True), (0.5, True, False), (0.6, False, False)])
+def test_a_shift_that_lines_up_less_of_the_frames_better_is_a_rival_on_its_plain_ncc(
+        monkeypatch, plain_there, switch, rival):
+    """Test 5's shift search with its surfaces set: at the estimate, plain 0.5 and weighted
+    0.4; 10 half-resolution pixels along x, a peak the weight puts 0.1 lower, beyond the
+    margin. It is a rival when its plain NCC exceeds the estimate's (``plain_shift_rivals``),
+    with its scores on that scale; not when it only ties, nor with the switch off."""
+    verifier = Verifier(REFERENCE, VerificationParams(plain_shift_rivals=switch))
+    measured = verifier.measure(CURRENT)
+    reach = verifier._shifts.max_shift
+    plain = np.full((2 * reach + 1,) * 2, 0.1, np.float32)
+    plain[reach, reach], plain[reach, reach + 10] = 0.5, plain_there
+    weighted = np.full_like(plain, 0.05)
+    weighted[reach, reach], weighted[reach, reach + 10] = 0.4, 0.3
+    monkeypatch.setattr(verifier._shifts, "surfaces", lambda fixed, moving: (plain, weighted))
+    found = verifier.shift_rival(verifier._compensated_half(measured.half, TRUTH), TRUTH,
+                                 measured)
+    if not rival:
+        assert found is None
+        return
+    assert found.plain and not found.ridge
+    assert (found.estimate_score, found.score) == (0.5, pytest.approx(plain_there))
+    shift = rotation_matrix(math.radians(TRUTH.angle_deg)) @ (20.0, 0.0)
+    assert (found.motion.dx, found.motion.dy) == pytest.approx((TRUTH.dx + shift[0],
+                                                                TRUTH.dy + shift[1]))
+
+
 def test_the_weighted_correlation_is_the_cosine_times_the_shares_the_overlap_holds():
     """Unmoved, the weighted correlation is the correlation (the overlap holds every edge);
     shifted by half the frame, the overlap holds part of each frame's edges, and the weighted
@@ -452,6 +480,29 @@ def test_a_turn_beyond_the_searched_angles_without_a_convincing_optimum_is_ambig
                    candidate_angles_deg=(-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0))
     assert Verifier(reference, wide)(current, turn).ok
     assert Verifier(reference)(current, turn).diagnostics["verify_failed"] == "depth"
+
+
+def test_plain_shift_rivals_fail_wrong_estimates_that_the_weighted_shifts_pass():
+    """Where the weighted and the plain shift search at the estimate's rotation disagree,
+    ``plain_shift_rivals`` fails the estimate as ambiguous. Two wrong estimates the default
+    check passes: the first unrelated pair above with its turn among the searched angles
+    (another shift lines the edges up better, on less of the frames), and the office walk's
+    contours below without the floor (a shift 70 px the other way lines them up as well)."""
+    first = (stabilizer.depth_to_disparity(make_depth_scene(seed, (106, 207), n_objects=3,
+                                                            floor=False))
+             for seed in (1353811672, 2130526010))
+    wide = replace(WITHOUT_DEPTH,
+                   candidate_angles_deg=(-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0))
+    cases = [(*first, Motion(-25.61, -15.48, -23.29), wide),
+             (*walking_frames("office_2058", 883, 897), Motion(-1.369, 32.04, 3.97),
+              VerificationParams(edge_floor_levels=0.0))]
+    for reference, current, wrong, params in cases:
+        assert Verifier(reference, params)(current, wrong).ok
+        strict = replace(params, plain_shift_rivals=True)
+        checked = Verifier(reference, strict)(current, wrong).diagnostics
+        assert checked["verify_failed"] == "ambiguous" and checked["verify_plain_shift"] is True
+        assert checked["verify_candidate_correlation"] > checked["verify_shift_correlation"]
+        assert checked["verify_candidate"][0] == wrong.angle_deg
 
 
 def test_a_true_turn_beyond_the_searched_angles_passes_when_its_optimum_is_convincing():
@@ -1024,7 +1075,8 @@ def test_thresholds_are_parameters():
                                  dict(convincing_correlation="x"), dict(outside_margin=None),
                                  dict(depth_tolerance_share=math.nan),
                                  dict(optimum_iterations=2.5),
-                                 dict(optimum_iterations=10**9)])
+                                 dict(optimum_iterations=10**9),
+                                 dict(plain_shift_rivals=1), dict(weighted_rivals="yes")])
 def test_bad_thresholds_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         VerificationParams(**bad)
