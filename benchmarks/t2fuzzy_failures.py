@@ -10,6 +10,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
     python benchmarks/t2fuzzy_failures.py rivals  /tmp/t2f/seq/*          # rival second looks
+    python benchmarks/t2fuzzy_failures.py grid-reach /tmp/t2f/seq/*       # the check's grid search
     python benchmarks/t2fuzzy_failures.py check-time /tmp/t2f/seq/* --param NAME --values A B
     python benchmarks/t2fuzzy_failures.py stage6  /tmp/t2f/seq/*          # stage 6 alone
     python benchmarks/t2fuzzy_failures.py flow-tiles /tmp/t2f/seq/off_pa_2009 272   # non-rigid
@@ -393,6 +394,38 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
             for method, (large, failures) in by_method.items()))
 
 
+def grid_reach(folders: list[Path], stride: int) -> None:
+    """How often the trust check's search over the grid of angles (its candidate, climbed at
+    half resolution, as test 5 climbs it) ends within the offset limits of the truth, by the
+    length of the truth's translation; every ``stride``-th frame whose truth is valid, the
+    references left out (docs/method.md, section 11, "Both measures")."""
+    from stabilizer import Motion
+    from stabilizer.verification import Verifier
+
+    edges = (0, 10, 20, 30, 40, 50, 60, 80, math.inf)
+    reached, counted = np.zeros(len(edges) - 1, int), np.zeros(len(edges) - 1, int)
+    for folder in folders:
+        frames, references, truth, truth_ok = _frames(folder)
+        verifier, current = None, None
+        for index in range(0, len(frames), stride):
+            if not truth_ok[index] or references[index] == index:
+                continue
+            if references[index] != current:
+                current = references[index]
+                verifier = Verifier(frames[current])
+            measured, true = verifier.measure(frames[index]), Motion(*truth[index])
+            candidate = verifier.candidate(measured.half)
+            end = verifier.local_optimum(measured.half, candidate) or candidate
+            row = int(np.searchsorted(edges, math.hypot(true.dx, true.dy), side="right")) - 1
+            counted[row] += 1
+            reached[row] += not verifier.params.beyond_offset(end, true)
+    for low, high, hits, frames_in in zip(edges[:-1], edges[1:], reached, counted):
+        if frames_in:
+            print(f"translation {low:g}-{high:g} px: {frames_in} frames, the grid search ends "
+                  f"within the offset limits of the truth on {100 * hits / frames_in:.0f}%")
+    print(f"all: {counted.sum()} frames, {100 * reached.sum() / max(counted.sum(), 1):.1f}%")
+
+
 def _summary(motions, truth, truth_ok) -> dict:
     from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
 
@@ -729,6 +762,10 @@ def main(argv: list[str] | None = None) -> int:
                                 "null_margin", "full_resolution_travel_deg",
                                 "strong_edge_ridge", "weighted_rivals",
                                 "plain_shift_rivals"])
+    reaching = commands.add_parser("grid-reach", help="the check's grid search against the truth")
+    reaching.add_argument("folders", type=Path, nargs="+")
+    reaching.add_argument("--stride", type=POSITIVE_INTEGER, default=3,
+                          help="every n-th frame")
     rivalled = commands.add_parser("rivals", help="second looks that pass with worse edges")
     rivalled.add_argument("folders", type=Path, nargs="+")
     isolated = commands.add_parser("stage6", help="stage 6 alone at the true rotation")
@@ -784,6 +821,8 @@ def main(argv: list[str] | None = None) -> int:
         flow_tiles(args.folder, args.frame, args.methods)
     elif args.command == "rivals":
         rivals(sequences)
+    elif args.command == "grid-reach":
+        grid_reach(sequences, args.stride)
     elif args.command == "stage6":
         stage6(sequences)
     elif args.command == "figures":

@@ -237,6 +237,7 @@ def test_the_stabilizer_timing_reports_the_frames_it_timed(capsys):
     ("t2fuzzy_failures.py", ["summary", "x", "--refinements", "no_such=1"],
      "--refinements no_such: no such setting"),
     ("t2fuzzy_failures.py", ["margins", "x", "--stride", "0"], "--stride: '0'"),
+    ("t2fuzzy_failures.py", ["grid-reach", "x", "--stride", "0"], "--stride: '0'"),
     ("t2fuzzy_failures.py",
      ["margins", "x", "--param", "strong_edge_ridge", "--values", "0", "2"],
      "--values 2: strong_edge_ridge is a switch; accepted: 0 and 1"),
