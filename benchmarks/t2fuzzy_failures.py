@@ -402,8 +402,8 @@ def grid_reach(folders: list[Path], stride: int) -> None:
     from stabilizer import Motion
     from stabilizer.verification import Verifier
 
-    edges = (0, 10, 20, 30, 40, 50, 60, 80, math.inf)
-    reached, counted = np.zeros(len(edges) - 1, int), np.zeros(len(edges) - 1, int)
+    bounds_px = (0, 10, 20, 30, 40, 50, 60, 80, math.inf)
+    reached, counted = np.zeros(len(bounds_px) - 1, int), np.zeros(len(bounds_px) - 1, int)
     for folder in folders:
         frames, references, truth, truth_ok = _frames(folder)
         verifier, current = None, None
@@ -416,10 +416,10 @@ def grid_reach(folders: list[Path], stride: int) -> None:
             measured, true = verifier.measure(frames[index]), Motion(*truth[index])
             candidate = verifier.candidate(measured.half)
             end = verifier.local_optimum(measured.half, candidate) or candidate
-            row = int(np.searchsorted(edges, math.hypot(true.dx, true.dy), side="right")) - 1
+            row = int(np.searchsorted(bounds_px, math.hypot(true.dx, true.dy), side="right")) - 1
             counted[row] += 1
             reached[row] += not verifier.params.beyond_offset(end, true)
-    for low, high, hits, frames_in in zip(edges[:-1], edges[1:], reached, counted):
+    for low, high, hits, frames_in in zip(bounds_px[:-1], bounds_px[1:], reached, counted):
         if frames_in:
             print(f"translation {low:g}-{high:g} px: {frames_in} frames, the grid search ends "
                   f"within the offset limits of the truth on {100 * hits / frames_in:.0f}%")

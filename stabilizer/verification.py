@@ -794,10 +794,9 @@ class Verifier:
         convincing optimum adds ``verify_beyond_search`` (True), a rival ``verify_candidate`` and
         ``verify_candidate_correlation`` (and, where the weighted correlations decided,
         ``verify_candidate_weighted_correlation`` and ``verify_weighted_optimum_correlation``),
-        and a rival shift (:meth:`shift_rival`, whose scores are
-        its own) ``verify_shift_correlation``, the estimate's score on the same scale,
-        ``verify_ridge``, ``verify_ridge_on_steps`` and ``verify_plain_shift``) and the rejected
-        estimate as
+        and a rival shift (:meth:`shift_rival`, whose scores are its own)
+        ``verify_shift_correlation``, the estimate's score on the same scale, ``verify_ridge``,
+        ``verify_ridge_on_steps`` and ``verify_plain_shift``) and the rejected estimate as
         ``unverified_motion``. A Motion that is already a failure is returned as it is."""
         if not motion.ok:
             return motion
