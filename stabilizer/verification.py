@@ -1112,8 +1112,9 @@ class ShiftRival(NamedTuple):
     """A rival of :meth:`Verifier.shift_rival`.
 
     Attributes:
-        motion: the rival: the estimate's rotation; its shift (refined by a parabola along each
-            axis for a peak), turned by that rotation, added to the estimate's.
+        motion: the rival: the estimate's rotation; its shift, in whole half-resolution pixels
+            (a peak is searched among the local maxima alone, so no neighbour refines it),
+            turned by that rotation, added to the estimate's.
         estimate_score: the best score within the offset limits of the estimate.
         score: the rival's score, on the same scale (weighted for a peak, plain for a ridge
             and for ``plain``; -inf for a shift that cannot be scored).
