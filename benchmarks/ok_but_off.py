@@ -14,7 +14,8 @@ the check climbed to from the estimate lies from the truth; on the sensor's dept
 of the stricter check on the estimate too (``VerificationParams(plain_shift_rivals=True)``,
 docs/method.md, section 11, "Both measures"). A truth that fails where the estimate passes says
 the check's edges do not line up at the truth; the exact depth tells whether the sensor (noise,
-unmeasured surfaces) is why. docs/suites.md reports it for the maintainers' checks. With ``--figures DIR``, one picture per frame (:func:`picture`).
+unmeasured surfaces) is why. docs/suites.md reports it for the maintainers' checks. With
+``--figures DIR``, one picture per frame (:func:`picture`).
 """
 
 from __future__ import annotations
