@@ -396,8 +396,8 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
 
 def grid_reach(folders: list[Path], stride: int) -> None:
     """How often the trust check's search over the grid of angles (its candidate, climbed at
-    half resolution, as test 5 climbs it) ends within the offset limits of the truth, by the
-    length of the truth's translation; every ``stride``-th frame whose truth is valid, the
+    half resolution; test 5 climbs it at full resolution too when that climb travels far) ends
+    within the offset limits of the truth, by the length of the truth's translation; every ``stride``-th frame whose truth is valid, the
     references left out (docs/method.md, section 11, "Both measures")."""
     from stabilizer import Motion
     from stabilizer.verification import Verifier

@@ -926,14 +926,13 @@ class Verifier:
         plain, scores = self._shifts.surfaces(self._reference_shifts, compensated)
         here = float(scores[self._within_offset].max())
         peaks = cv2.dilate(scores, np.ones((3, 3), np.uint8)) == scores
-        found = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, scores),
-                             self._shifts.max_shift)
+        no_rival = self._within_offset | ~peaks  # within the limits, or no local maximum
+        found = surface_peak(np.where(no_rival, -np.inf, scores), self._shifts.max_shift)
         if math.isfinite(here) and found.peak > here - self.params.candidate_margin:
             return self._shift_rival(motion, (found.x, found.y), here, found.peak)
         if self.params.plain_shift_rivals:
             plain_here = float(plain[self._within_offset].max())
-            lined_up = surface_peak(np.where(self._within_offset | ~peaks, -np.inf, plain),
-                                    self._shifts.max_shift)
+            lined_up = surface_peak(np.where(no_rival, -np.inf, plain), self._shifts.max_shift)
             if math.isfinite(plain_here) and lined_up.peak > plain_here:
                 return self._shift_rival(motion, (lined_up.x, lined_up.y), plain_here,
                                          lined_up.peak, plain=True)
