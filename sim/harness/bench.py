@@ -492,12 +492,13 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
 
     Records ``n_frames`` (None: the whole scenario) once (timed: ``egostab record``; the
     sequence's size on disk is reported too, at most 60 MB asked for the whole scenario), then
-    times ``egostab score`` of ``t2fuzzy`` alone in this process, twice (as a multiple of real
-    time: the sequence's simulated seconds per wall-clock second; the figure is the faster run,
-    the first also pays the process's first imports of the report and plotting code, about
-    1 s), and of every method with one and with two worker processes, each twice, alternating
-    (the ratio of the faster runs is the speed-up of ``--workers 2``; a shared machine's load
-    drifts within minutes).
+    times ``egostab score`` of ``t2fuzzy`` alone in this process, twice, alternating with the
+    same without the trust check (``--no-check``: the method's own cost; as a multiple of real
+    time: the sequence's simulated seconds per wall-clock second; each figure is the faster of
+    its two runs, the first also pays the process's first imports of the report and plotting
+    code, about 1 s), and of every method with one and with two worker processes, each twice,
+    alternating (the ratio of the faster runs is the speed-up of ``--workers 2``; a shared
+    machine's load drifts within minutes).
     """
     from sim.harness.runner import RecordConfig, record
     from sim.harness.score import ScoreConfig, score
@@ -517,8 +518,12 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
                                        **options)))
             return clock() - started
 
-        first, again = (seconds(f"t2fuzzy{run}", methods=("t2fuzzy",)) for run in (1, 2))
+        t2fuzzy_runs = [(seconds(f"t2fuzzy{run}", methods=("t2fuzzy",)),
+                         seconds(f"t2fuzzy_unchecked{run}", methods=("t2fuzzy",),
+                                 trust_check=False)) for run in (1, 2)]
+        (first, again), unchecked = zip(*t2fuzzy_runs)
         t2fuzzy_rtf = sim_time_s / min(first, again)
+        unchecked_rtf = sim_time_s / min(unchecked)
         # Process CPU time: what the re-score costs this process, which other jobs on a shared
         # machine disturb less than the wall clock.
         cpu_rtf = sim_time_s / seconds("t2fuzzy_cpu", time.process_time, methods=("t2fuzzy",))
@@ -529,12 +534,14 @@ def rescoring(n_frames: int | None = None) -> dict[str, float]:
           f"{sequence_mb:.1f} MB")
     print(f"re-scoring t2fuzzy on a recorded {DEFAULT_SCENARIO} ({sim_time_s:.1f} s): "
           f"{t2fuzzy_rtf:.1f}x real time, one core (runs of {first:.2f} s and {again:.2f} s); "
-          f"{cpu_rtf:.1f}x in process CPU time")
+          f"{cpu_rtf:.1f}x in process CPU time; without the trust check {unchecked_rtf:.1f}x "
+          f"(runs of {unchecked[0]:.2f} s and {unchecked[1]:.2f} s)")
     print(f"score, every method: --workers 1 {one:.1f} s, --workers 2 {two:.1f} s "
           f"({one / two:.2f}x)")
     return {"record_realtime_factor": record_rtf, "sequence_mb": sequence_mb,
             "rescore_t2fuzzy_realtime_factor": t2fuzzy_rtf,
-            "rescore_t2fuzzy_cpu_realtime_factor": cpu_rtf, "score_workers1_s": one,
+            "rescore_t2fuzzy_cpu_realtime_factor": cpu_rtf,
+            "rescore_t2fuzzy_unchecked_realtime_factor": unchecked_rtf, "score_workers1_s": one,
             "score_workers2_s": two}
 
 
@@ -636,6 +643,9 @@ def bench_markdown(figures: dict) -> str:
               f"{figures['rescore_t2fuzzy_realtime_factor']:.1f}x real time |",
               f"| the same, in process CPU time (a third run) | "
               f"{figures['rescore_t2fuzzy_cpu_realtime_factor']:.1f}x real time |",
+              "| the same without the trust check (`egostab score --no-check`), faster of two "
+              "runs alternating with the checked ones | "
+              f"{figures['rescore_t2fuzzy_unchecked_realtime_factor']:.1f}x real time |",
               f"| `egostab score`, every method, `--workers 2` against `--workers 1`, faster of "
               f"two runs each | "
               f"{figures['score_workers1_s'] / figures['score_workers2_s']:.2f}x faster "

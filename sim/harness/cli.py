@@ -157,6 +157,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
     # Built before the folder is made: ScoreConfig refuses a run folder in the sequence folder.
     config = ScoreConfig(sequence=str(args.sequence), out_dir=str(out), methods=args.methods,
                          estimates=estimates, check_estimates=args.check_estimates,
+                         trust_check=not args.no_check,
                          record=not args.no_record, workers=args.workers,
                          max_frames=args.max_frames, progress=not args.quiet)
     out_dir = check_output_path(out)
@@ -305,6 +306,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="pass the estimates files' ok rows through the trust check every "
                              "method's ok passes (rows it cannot confirm become unverified); "
                              "default: scored as given")
+    scorer.add_argument("--no-check", action="store_true",
+                        help="score the methods' estimates as each method reports them, without "
+                             "the trust check their ok passes by default (figures not "
+                             "comparable with a checked run's)")
     scorer.add_argument("--out", type=path_option, default=None,
                         help="run folder (default: results/<sequence folder name>; for a "
                              "suite's runs/<name>/sequence, results/<name>)")

@@ -211,7 +211,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
     """The content of summary.md."""
     state = provenance()
     seed = meta.get("seed", scenario.get("seed"))
-    cut_short = cut_short_note(meta)
+    notes = [note for note in (cut_short_note(meta), unchecked_note(meta)) if note]
     lines = [
         f"# {_scenario_name(scenario, files.run_dir)}: stabilizer errors against the simulated "
         "ground truth",
@@ -220,7 +220,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
         f"Commit: {state['git_commit'] or 'unknown'}"
         f"{' (uncommitted changes)' if state['git_dirty'] else ''}.",
         "",
-        *([cut_short, ""] if cut_short else []),
+        *(line for note in notes for line in (note, "")),
         "## Absolute errors (the layout of Table I of Kang, Zhang & Park 2009)",
         "",
         "Mean, population variance and maximum of |estimate - truth| over the frames where both "
@@ -281,6 +281,16 @@ def cut_short_note(meta: Mapping) -> str | None:
     return f"Note: the sequence's recording was cut short ({recorded['message']})."
 
 
+def unchecked_note(meta: Mapping) -> str | None:
+    """The note that the methods' estimates were scored without the trust check
+    (``egostab score --no-check``); None when they passed it, as in every other run."""
+    if meta.get("trust_check", True):
+        return None
+    return ("Note: scored without the trust check (`--no-check`): each method's `ok` is the "
+            "method's own, not confirmed by the check that the `ok` of every other run passes "
+            "(docs/method.md, section 11).")
+
+
 def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str:
     """One screen for the end of a run: Table I, EPE, failures/time/ITF, where the files are.
 
@@ -291,9 +301,9 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
     summary = RunSummary.from_dict(metrics["summary"])
     lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
              "", epe_table(summary.run), "", reliability_table(summary.run)]
-    note = cut_short_note(metrics.get("run", {}))
-    if note:
-        lines += ["", note]
+    for note in (cut_short_note(metrics.get("run", {})), unchecked_note(metrics.get("run", {}))):
+        if note:
+            lines += ["", note]
     kept = _run_on_disk(run_dir) if run_dir is not None else None
     if kept is not None and kept.get("run", {}).get("wall_time_s") != metrics.get(
             "run", {}).get("wall_time_s"):

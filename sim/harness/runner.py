@@ -18,6 +18,7 @@ every finished frame and say how the run ended.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import shutil
@@ -395,10 +396,14 @@ class Estimate:
 
 
 class MethodEstimation:
-    """A method's estimates in this process, analysing each reference once."""
+    """A method's estimates in this process, analysing each reference once; through the trust
+    check (``stabilizer.verification``) unless ``checked`` is False, then as the method reports
+    them."""
 
-    def __init__(self, method: str):
+    def __init__(self, method: str, checked: bool = True):
         self.factory = method_factory(method)
+        if not checked:
+            self.factory = functools.partial(self.factory, verification=None)
         self.reference_index = None
         self.stabilizer: Estimator | None = None
         self.analysis_ms: list[float] = []

@@ -54,6 +54,9 @@ class ScoreConfig:
         check_estimates: pass the estimates files' ``"ok"`` rows through the trust check that
             every method's ``"ok"`` passes (``stabilizer.verification``); a row it cannot
             confirm becomes ``"unverified"``. Default: scored as given.
+        trust_check: pass every method's ``"ok"`` estimates through that check, as ``run``
+            does (default); False: each method's estimates are scored as the method reports
+            them (``--no-check``), figures that are not comparable with a checked run's.
         record: write ``recording.rrd`` if the scenario's ``[recording] enabled`` allows it.
         workers: processes that run the methods (1 = this process; None = one per core,
             or 1 when no method runs).
@@ -67,6 +70,7 @@ class ScoreConfig:
     methods: tuple[str, ...] | None = None
     estimates: Mapping[str, str] = field(default_factory=dict)
     check_estimates: bool = False
+    trust_check: bool = True
     record: bool = True
     workers: int | None = 1
     max_frames: int | None = None
@@ -80,6 +84,9 @@ class ScoreConfig:
         if self.check_estimates and not self.estimates:
             raise ValueError("--check-estimates: no estimates file to check; accepted: with "
                              "--estimates")
+        if self.check_estimates and not self.trust_check:
+            raise ValueError("--check-estimates with --no-check: the estimates files would pass "
+                             "the trust check and the methods not; accepted: one of the two")
         # The run's files would mix with the sequence's.
         if Path(self.out_dir).resolve().is_relative_to(Path(self.sequence).resolve()):
             raise ValueError(f"--out {self.out_dir}: is in the sequence folder; accepted: a "
@@ -122,9 +129,10 @@ def score(config: ScoreConfig) -> dict:
                             "estimates_sha256": {name: estimation.sha256 for name, estimation
                                                  in file_methods.items()},
                             "estimates_checked": config.check_estimates,
+                            "trust_check": config.trust_check,
                             "max_frames": config.max_frames, "workers": workers})
     frames = SequenceFrames(sequence, config.max_frames)
-    with _method_estimations(sequence, frames.n_frames, methods, workers,
+    with _method_estimations(sequence, frames.n_frames, methods, workers, config.trust_check,
                              keep_images=scoring.recording_path is not None) as (estimations, pool):
         scoring.plot_pool = pool and pool.processes
         frames.decoded = pool and pool.frame
@@ -412,18 +420,19 @@ def estimates_by_name(pairs: Sequence[tuple[str, str]] | None) -> dict[str, str]
 
 @contextmanager
 def _method_estimations(sequence, n_frames: int, methods: tuple[str, ...], workers: int,
-                        keep_images: bool) -> Iterator[tuple[dict, Any]]:
-    """Each method's estimation and the pool behind them (None): in this process, or in a
-    pool of ``workers`` processes (whose estimates come back without their diagnostic images
-    unless ``keep_images``: a recording shows them, nothing else reads them, and pickling them
-    costs more than the estimates); the pool estimates the first ``n_frames`` frames."""
+                        checked: bool, keep_images: bool) -> Iterator[tuple[dict, Any]]:
+    """Each method's estimation (through the trust check if ``checked``) and the pool behind
+    them (None): in this process, or in a pool of ``workers`` processes (whose estimates come
+    back without their diagnostic images unless ``keep_images``: a recording shows them,
+    nothing else reads them, and pickling them costs more than the estimates); the pool
+    estimates the first ``n_frames`` frames."""
     from sim.harness.pipeline import PooledMethod
     from sim.harness.runner import MethodEstimation
 
     if workers == 1 or not methods or not n_frames:
-        yield {method: MethodEstimation(method) for method in methods}, None
+        yield {method: MethodEstimation(method, checked) for method in methods}, None
         return
-    pool = _EstimationPool(sequence, n_frames, methods, workers, keep_images)
+    pool = _EstimationPool(sequence, n_frames, methods, workers, checked, keep_images)
     try:
         yield {method: PooledMethod(pool, method) for method in methods}, pool
     finally:
@@ -455,18 +464,18 @@ _WORKER_SEQUENCES: dict[str, Any] = {}
 FRAME = ""
 
 
-def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool]):
+def _estimate_chunk(task: tuple[str, tuple[str, ...], list[int], bool, bool]):
     """In a worker: every method's estimates of a chunk of frames, each frame decoded (without
     its exact depth, which only the truth needs) with its ground truth (each frame read once),
     and the methods' analysis times."""
     from sim.harness.runner import MethodEstimation, frame_truth
     from sim.harness.sequence import load_sequence
 
-    path, methods, indices, keep_images = task
+    path, methods, indices, checked, keep_images = task
     if path not in _WORKER_SEQUENCES:
         _WORKER_SEQUENCES[path] = load_sequence(path)
     sequence = _WORKER_SEQUENCES[path]
-    estimations = {method: MethodEstimation(method) for method in methods}
+    estimations = {method: MethodEstimation(method, checked) for method in methods}
     reference = None
     estimates = []
     for index in indices:
@@ -488,12 +497,12 @@ class _EstimationPool:
     their ground truth; results are taken in task order."""
 
     def __init__(self, sequence, n_frames: int, methods: tuple[str, ...], workers: int,
-                 keep_images: bool):
+                 checked: bool, keep_images: bool):
         from sim.harness.threads import single_thread_pool
 
         chunks = reference_chunks([row.reference_frame for row in sequence.rows[:n_frames]],
                                   workers * CHUNKS_PER_WORKER)
-        tasks = [(str(sequence.path), methods, chunk, keep_images) for chunk in chunks]
+        tasks = [(str(sequence.path), methods, chunk, checked, keep_images) for chunk in chunks]
         self.processes = single_thread_pool(min(workers, len(tasks)))
         self.results = self.processes.map(_estimate_chunk, tasks)
         self.ready: dict[tuple[str, int], Any] = {}

@@ -281,6 +281,52 @@ def test_check_estimates_without_estimates_is_refused(folders, tmp_path, capsys)
     assert len(err) == 1 and "--check-estimates: no estimates file to check" in err[0]
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_no_check_scores_each_methods_estimates_as_the_method_reports_them(folders, tmp_path,
+                                                                            workers):
+    from stabilizer import Stabilizer
+
+    # A method whose one answer, whatever the frames, the check cannot confirm on most frames.
+    fixed = "tests.sim.harness.plugin_methods:fixed_motion"
+    methods = ("t2fuzzy", fixed)
+    for name, checked in (("checked", True), ("unchecked", False)):
+        score(ScoreConfig(sequence=str(folders / "sequence"), out_dir=str(tmp_path / name),
+                          methods=methods, trust_check=checked, record=False, workers=workers))
+    checked, unchecked = ({(int(row["frame_index"]), row["method"]): row
+                           for row in _rows(tmp_path / name)} for name in ("checked", "unchecked"))
+    assert checked.keys() == unchecked.keys()
+    assert sum(checked[frame, fixed]["status"] == "unverified" for frame in range(N_FRAMES)) > 0
+    assert {unchecked[frame, fixed]["status"] for frame in range(N_FRAMES)} == {"ok"}
+    sequence = load_sequence(folders / "sequence")
+    for (frame, method), row in unchecked.items():
+        assert row["status"] != "unverified"
+        if checked[frame, method]["status"] == "ok":  # the check passes what it does not change
+            for key in ("est_angle_deg", "est_dx_px", "est_dy_px"):
+                assert row[key] == checked[frame, method][key]
+        if method == "t2fuzzy":  # the built-in method as Stabilizer(..., verification=None) gives it
+            reference = sequence.frame(int(row["reference_index"]))
+            own = Stabilizer(reference.disparity8, "t2fuzzy", verification=None).estimate(
+                sequence.frame(frame).disparity8)
+            assert row["status"] == own.status
+            if own.ok:
+                assert [float(row[key]) for key in ("est_angle_deg", "est_dx_px", "est_dy_px")
+                        ] == pytest.approx(own.as_tuple(), abs=1e-9)
+    metrics = json.loads((tmp_path / "unchecked" / "metrics.json").read_text())
+    assert metrics["run"]["trust_check"] is False
+    assert "scored without the trust check" in (tmp_path / "unchecked" / "summary.md").read_text()
+    assert "without the trust check" not in (tmp_path / "checked" / "summary.md").read_text()
+
+
+def test_no_check_with_check_estimates_is_refused(folders, tmp_path, capsys):
+    path = _estimates_from_truth(folders / "sequence", tmp_path / "mine.csv")
+    code = main(["score", str(folders / "sequence"), "--methods", "ecc", "--no-check",
+                 "--estimates", str(path), "--check-estimates", "--out", str(tmp_path / "out"),
+                 "--quiet"])
+    assert code == 2 and not (tmp_path / "out").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--check-estimates with --no-check" in err[0]
+
+
 def test_frames_without_an_estimate_enter_the_itf_uncompensated(folders, tmp_path):
     # As the stabilized output shows them: a stream of failures alone is the raw stream.
     failures = tmp_path / "failures.csv"
