@@ -6,6 +6,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
+    python benchmarks/t2fuzzy_failures.py switch /tmp/t2f/seq/* --param image_border  # whole runs
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
@@ -394,6 +395,59 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
             for method, (large, failures) in by_method.items()))
 
 
+def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> None:
+    """A switch of the trust check (``param``, a True/False field of
+    :class:`~stabilizer.verification.VerificationParams`) off and on, each method run whole
+    through the check (``t2fuzzy``'s second looks included, unlike :func:`margins`), frame by
+    frame on every ``stride``-th frame with a valid truth: per method, the ``"ok"`` estimates
+    and those off by more than 5 deg or 10 px with each setting; the ``"ok"`` estimates lost
+    and gained by switching on, and how many of them lay within 1 deg and 2 px of the truth or
+    beyond 5 deg or 10 px; how many ``"ok"`` estimates both settings give but differently; and
+    each frame off by more than 5 deg or 10 px with either setting."""
+    from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
+
+    def errors(motion, truth) -> np.ndarray | None:
+        if not motion.ok:
+            return None
+        off = np.abs(np.subtract(motion.as_tuple(), truth))
+        off[0] = abs((motion.angle_deg - truth[0] + 180.0) % 360.0 - 180.0)
+        return off
+
+    def large(off) -> bool:
+        return off is not None and (off[0] > LARGE_ERROR_DEG or max(off[1:]) > LARGE_ERROR_PX)
+
+    def accurate(off) -> bool:
+        return off is not None and off[0] <= 1.0 and max(off[1:]) <= 2.0
+
+    loaded = [(folder, _frames(folder)) for folder in folders]
+    for method in methods:
+        rows = []  # (sequence, frame, errors off, errors on)
+        for folder, (frames, references, truth, truth_ok) in loaded:
+            off, on = (_estimates(frames, references, method, _check_params(param, value),
+                                  stride)[0] for value in (0.0, 1.0))
+            name = folder.parent.name if folder.name == "sequence" else folder.name  # a suite's
+            rows += [(name, index, errors(before, truth[index]),
+                      errors(after, truth[index]))
+                     for index, before, after in zip(range(0, len(frames), stride), off, on)
+                     if truth_ok[index]]
+        for setting, column in (("off", 2), ("on", 3)):
+            print(f"{method}, {param} {setting}: {sum(row[column] is not None for row in rows)} "
+                  f"ok of {len(rows)}, {sum(large(row[column]) for row in rows)} off by more "
+                  f"than {LARGE_ERROR_DEG:g} deg or {LARGE_ERROR_PX:g} px")
+        for change, was, now in (("lost", 2, 3), ("gained", 3, 2)):
+            changed = [row for row in rows if row[was] is not None and row[now] is None]
+            print(f"  ok {change}: {len(changed)} ({sum(accurate(row[was]) for row in changed)} "
+                  f"within 1 deg and 2 px, {sum(large(row[was]) for row in changed)} off by more)")
+        moved = sum(row[2] is not None and row[3] is not None and not np.array_equal(row[2], row[3])
+                    for row in rows)
+        print(f"  ok both ways, another estimate: {moved}")
+        for name, index, before, after in rows:
+            if large(before) or large(after):
+                shown = ["-" if off is None else "/".join(f"{value:.2f}" for value in off)
+                         for off in (before, after)]
+                print(f"  {name} frame {index}: off {shown[0]}, on {shown[1]}")
+
+
 def grid_reach(folders: list[Path], stride: int) -> None:
     """How often the trust check's search over the grid of angles (its candidate, climbed at
     half resolution; test 5 climbs it at full resolution too when that climb travels far) ends
@@ -761,7 +815,15 @@ def main(argv: list[str] | None = None) -> int:
                        choices=["candidate_margin", "outside_margin", "ridge_margin",
                                 "null_margin", "full_resolution_travel_deg",
                                 "strong_edge_ridge", "weighted_rivals",
-                                "plain_shift_rivals"])
+                                "plain_shift_rivals", "image_border"])
+    switched = commands.add_parser("switch", help="a switch of the check, whole runs")
+    switched.add_argument("folders", type=Path, nargs="+")
+    switched.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
+    switched.add_argument("--stride", type=POSITIVE_INTEGER, default=2,
+                          help="every n-th frame")
+    switched.add_argument("--param", default="image_border",
+                          choices=["strong_edge_ridge", "weighted_rivals", "plain_shift_rivals",
+                                   "image_border", "second_look_rivals"])
     reaching = commands.add_parser("grid-reach", help="the check's grid search against the truth")
     reaching.add_argument("folders", type=Path, nargs="+")
     reaching.add_argument("--stride", type=POSITIVE_INTEGER, default=3,
@@ -821,6 +883,8 @@ def main(argv: list[str] | None = None) -> int:
         flow_tiles(args.folder, args.frame, args.methods)
     elif args.command == "rivals":
         rivals(sequences)
+    elif args.command == "switch":
+        switch(sequences, args.methods, args.stride, args.param)
     elif args.command == "grid-reach":
         grid_reach(sequences, args.stride)
     elif args.command == "stage6":

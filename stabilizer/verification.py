@@ -171,6 +171,14 @@ class VerificationParams:
             the methods are tuned and checked on, it failed accurate estimates far more often
             than wrong ones (docs/method.md, section 11, "Both measures"); True: the stricter
             check.
+        image_border: the frame ends at the image's borders as at invalid pixels: the
+            smoothing is the normalised convolution there too, and the pixels within 1.5
+            ``sigma_px`` of a border are left out of the edges (:func:`edge_images`). Otherwise
+            the smoothing reflects the frame at its borders, which turns the slope of a wall's
+            disparity into a crease along the border: a depth step of the frame's own, the same
+            in every frame, that lines up without any motion and can pin an estimate of no
+            motion down where the scene does not (docs/method.md, section 11, "The image's
+            borders"). Default False; True: the borders left out.
         depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
             compensated current frame disagrees in depth with the reference when its disparity
             lies more than the larger of the first two (gray levels; a share of its own
@@ -238,6 +246,7 @@ class VerificationParams:
     strong_edge_ridge: bool = True
     weighted_rivals: bool = True
     plain_shift_rivals: bool = False
+    image_border: bool = False
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.
@@ -281,7 +290,8 @@ def edge_image(image: np.ndarray, sigma_px: float,
 
 
 def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
-                floor_levels: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                floor_levels: float, image_border: bool = False
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, the same without its weak
     responses, where they are measured, and whether the clip limit lies below the floor.
 
@@ -302,6 +312,11 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
         The responses whose magnitude (before the clip) is below ``floor_levels`` times the
         largest response of a one-level depth step (:func:`step_response`) are 0 in
         ``strong``.
+    image_border : bool
+        The frame ends at its borders as at invalid pixels (the outside counts as invalid,
+        and the pixels within 1.5 ``sigma_px`` of a border are not measured); default False:
+        the smoothing reflects the frame at its borders (``cv2.BORDER_REFLECT_101``), and a
+        slope becomes a crease there.
 
     Returns
     -------
@@ -319,12 +334,14 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
     # The Gaussian to 3 sigma, filtered straight from uint8 to float32 (cv2.GaussianBlur's
     # kernel and border, without a float copy of the frame first).
     gaussian = cv2.getGaussianKernel(2 * math.ceil(3 * sigma_px) + 1, sigma_px, cv2.CV_32F)
-    smoothed = cv2.sepFilter2D(image, cv2.CV_32F, gaussian, gaussian)
-    if cv2.countNonZero(valid) < valid.size:  # normalised convolution: divide by the weight
-        weight = cv2.sepFilter2D(valid, cv2.CV_32F, gaussian, gaussian)
+    border = cv2.BORDER_CONSTANT if image_border else cv2.BORDER_REFLECT_101
+    smoothed = cv2.sepFilter2D(image, cv2.CV_32F, gaussian, gaussian, borderType=border)
+    if image_border or cv2.countNonZero(valid) < valid.size:
+        # Normalised convolution: divide by the weight of the valid pixels.
+        weight = cv2.sepFilter2D(valid, cv2.CV_32F, gaussian, gaussian, borderType=border)
         smoothed = cv2.divide(smoothed, cv2.max(weight, 1e-3))
     laplacian = cv2.Laplacian(smoothed, cv2.CV_32F, ksize=3)
-    measured = cv2.erode(valid, _step_reach(sigma_px), borderValue=1)
+    measured = cv2.erode(valid, _step_reach(sigma_px), borderValue=0 if image_border else 1)
     laplacian *= measured
     # A robust scale of the responses: their median over every other row and column.
     responses = np.abs(laplacian[::2, ::2][measured[::2, ::2].view(bool)])
@@ -577,7 +594,8 @@ class Verifier:
         self._reference_range = disparity_range(reference)
         edges, strong, measured, floored = edge_images(reference, params.sigma_px,
                                                        params.clip_factor,
-                                                       params.edge_floor_levels)
+                                                       params.edge_floor_levels,
+                                                       params.image_border)
         # Tests 2 and 6 on the strong edges only where the floor applies to a frame.
         self._reference = (edges, measured)
         self._reference_strong = (strong if floored else edges, measured)
@@ -761,7 +779,8 @@ class Verifier:
         params = self.params
         edges, steps, measured, floored = edge_images(current, params.sigma_px,
                                                       params.clip_factor,
-                                                      params.edge_floor_levels)
+                                                      params.edge_floor_levels,
+                                                      params.image_border)
         strong = steps if floored else edges
         null_correlation, _ = structure_correlation(*self._reference, edges, measured)
         strong_null = (structure_correlation(*self._reference_strong, strong, measured)[0]
