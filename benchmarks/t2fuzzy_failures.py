@@ -423,12 +423,14 @@ def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> 
     for method in methods:
         rows = []  # (sequence, frame, errors off, errors on)
         for folder, (frames, references, truth, truth_ok) in loaded:
-            off, on = (_estimates(frames, references, method, _check_params(param, value),
-                                  stride)[0] for value in (0.0, 1.0))
+            switched_off, switched_on = (
+                _estimates(frames, references, method, _check_params(param, value), stride)[0]
+                for value in (0.0, 1.0))
             name = folder.parent.name if folder.name == "sequence" else folder.name  # a suite's
             rows += [(name, index, errors(before, truth[index]),
                       errors(after, truth[index]))
-                     for index, before, after in zip(range(0, len(frames), stride), off, on)
+                     for index, before, after in zip(range(0, len(frames), stride),
+                                                     switched_off, switched_on)
                      if truth_ok[index]]
         for setting, column in (("off", 2), ("on", 3)):
             print(f"{method}, {param} {setting}: {sum(row[column] is not None for row in rows)} "
@@ -438,8 +440,8 @@ def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> 
             changed = [row for row in rows if row[was] is not None and row[now] is None]
             print(f"  ok {change}: {len(changed)} ({sum(accurate(row[was]) for row in changed)} "
                   f"within 1 deg and 2 px, {sum(large(row[was]) for row in changed)} off by more)")
-        moved = sum(row[2] is not None and row[3] is not None and not np.array_equal(row[2], row[3])
-                    for row in rows)
+        moved = sum(row[2] is not None and row[3] is not None
+                    and not np.array_equal(row[2], row[3]) for row in rows)
         print(f"  ok both ways, another estimate: {moved}")
         for name, index, before, after in rows:
             if large(before) or large(after):

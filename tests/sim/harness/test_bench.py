@@ -53,15 +53,16 @@ def test_the_corpus_benchmark_times_the_methods_with_and_without_the_check(monke
         "pipeline_realtime_factor": {"every method": 1.25},
         "record_realtime_factor": 2.5, "sequence_mb": 47.0,
         "rescore_t2fuzzy_realtime_factor": 3.5, "rescore_t2fuzzy_cpu_realtime_factor": 3.25,
-        "rescore_t2fuzzy_unchecked_realtime_factor": 6.25, "score_workers1_s": 30.0, "score_workers2_s": 15.0, "t2fuzzy_corpus": figures})
+        "rescore_t2fuzzy_unchecked_realtime_factor": 6.25, "score_workers1_s": 30.0,
+        "score_workers2_s": 15.0, "t2fuzzy_corpus": figures})
     # Each ratio is to t2fuzzy (the first table) or of SIFT to t2fuzzy (the corpus).
     assert "| t2fuzzy | 4.00 | 2.00 | 1.00 | 5.00 | 2.50 | 1.00 |" in markdown
     assert "| sift | 6.00 | 3.00 | 1.50 | 2.50 | 1.50 | 0.50 |" in markdown
     assert "| `egostab run` of the default scenario, every method | 1.25x real time |" in markdown
     assert "| walking physics + control, no rendering | 50.0x real time |" in markdown
     assert "a sequence of 47 MB" in markdown and "| 3.5x real time |" in markdown
-    assert "(`egostab score --no-check`), faster of two runs alternating with the checked ones | " \
-           "6.2x real time |" in markdown
+    assert ("(`egostab score --no-check`), faster of two runs alternating with the checked "
+            "ones | 6.2x real time |") in markdown
     assert "| 2.00x faster (30.0 s / 15.0 s) |" in markdown
     assert "| clutter | 102.00 (112.00) | 104.00 (114.00) | 1.02 | 2.00 | 3.00 | 4.00 | 2.00 |" \
         in markdown
@@ -150,7 +151,8 @@ def test_rescoring_reports_the_sequences_seconds_per_second_of_its_jobs(monkeypa
     assert bench.rescoring(2) == pytest.approx({
         "record_realtime_factor": 2.5, "sequence_mb": 2.0,
         "rescore_t2fuzzy_realtime_factor": 2.5, "rescore_t2fuzzy_cpu_realtime_factor": 1.25,
-        "rescore_t2fuzzy_unchecked_realtime_factor": 5.0, "score_workers1_s": 28.0, "score_workers2_s": 15.0})
+        "rescore_t2fuzzy_unchecked_realtime_factor": 5.0, "score_workers1_s": 28.0,
+        "score_workers2_s": 15.0})
     assert "--workers 1 28.0 s, --workers 2 15.0 s (1.87x)" in capsys.readouterr().out
 
 

@@ -303,7 +303,7 @@ def test_no_check_scores_each_methods_estimates_as_the_method_reports_them(folde
         if checked[frame, method]["status"] == "ok":  # the check passes what it does not change
             for key in ("est_angle_deg", "est_dx_px", "est_dy_px"):
                 assert row[key] == checked[frame, method][key]
-        if method == "t2fuzzy":  # the built-in method as Stabilizer(..., verification=None) gives it
+        if method == "t2fuzzy":  # as Stabilizer(..., verification=None) gives it
             reference = sequence.frame(int(row["reference_index"]))
             own = Stabilizer(reference.disparity8, "t2fuzzy", verification=None).estimate(
                 sequence.frame(frame).disparity8)
