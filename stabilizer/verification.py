@@ -273,6 +273,7 @@ class VerificationParams:
         check_flag("strong_edge_ridge", self.strong_edge_ridge)
         check_flag("weighted_rivals", self.weighted_rivals)
         check_flag("plain_shift_rivals", self.plain_shift_rivals)
+        check_flag("image_border", self.image_border)
 
     def beyond_offset(self, motion: Motion, other: Motion) -> bool:
         """Whether ``motion`` lies beyond ``max_offset_deg`` or ``max_offset_px`` of ``other``."""

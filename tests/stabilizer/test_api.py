@@ -1,5 +1,6 @@
 """Input validation and degenerate inputs through ``stabilizer.estimate``."""
 
+import dataclasses
 import math
 import pickle
 
@@ -261,11 +262,13 @@ def test_a_second_look_beyond_the_offset_limits_that_passes_makes_the_estimate_a
     assert without.diagnostics["second_look_failed"] == "edges"
 
 
-def test_second_look_rivals_is_a_flag():
-    with pytest.raises(ValueError, match="second_look_rivals must be True or False"):
-        VerificationParams(second_look_rivals=1)
-    with pytest.raises(ValueError, match="strong_edge_ridge must be True or False"):
-        VerificationParams(strong_edge_ridge=1)
+@pytest.mark.parametrize("switch", [field.name for field in dataclasses.fields(VerificationParams)
+                                    if isinstance(field.default, bool)])
+def test_every_switch_of_the_check_is_a_flag(switch):
+    # 1 or "no" would switch a test on or off silently.
+    for value in (1, "no"):
+        with pytest.raises(ValueError, match=f"{switch} must be True or False"):
+            VerificationParams(**{switch: value})
 
 
 def test_no_second_look_without_the_check_or_for_a_failure():
