@@ -405,12 +405,13 @@ def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> 
     beyond 5 deg or 10 px; how many ``"ok"`` estimates both settings give but differently; and
     each frame off by more than 5 deg or 10 px with either setting."""
     from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
+    from stabilizer.motion import wrap_angle_deg
 
     def errors(motion, truth) -> np.ndarray | None:
         if not motion.ok:
             return None
         off = np.abs(np.subtract(motion.as_tuple(), truth))
-        off[0] = abs((motion.angle_deg - truth[0] + 180.0) % 360.0 - 180.0)
+        off[0] = abs(float(wrap_angle_deg(motion.angle_deg - truth[0])))
         return off
 
     def large(off) -> bool:
@@ -772,6 +773,7 @@ def _check_refinements(settings: dict) -> None:
 def main(argv: list[str] | None = None) -> int:
     from sim.command_line import (MAX_SEED, POSITIVE_INTEGER, OneLineParser, integer_option,
                                   path_option)
+    from stabilizer.verification import VerificationParams
 
     parser = OneLineParser(prog="t2fuzzy_failures.py", description=__doc__.splitlines()[0])
     commands = parser.commands = parser.add_subparsers(dest="command", required=True)
@@ -824,8 +826,8 @@ def main(argv: list[str] | None = None) -> int:
     switched.add_argument("--stride", type=POSITIVE_INTEGER, default=2,
                           help="every n-th frame")
     switched.add_argument("--param", default="image_border",
-                          choices=["strong_edge_ridge", "weighted_rivals", "plain_shift_rivals",
-                                   "image_border", "second_look_rivals"])
+                          choices=[field.name for field in dataclasses.fields(VerificationParams)
+                                   if isinstance(field.default, bool)])
     reaching = commands.add_parser("grid-reach", help="the check's grid search against the truth")
     reaching.add_argument("folders", type=Path, nargs="+")
     reaching.add_argument("--stride", type=POSITIVE_INTEGER, default=3,
