@@ -6,7 +6,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
-    python benchmarks/t2fuzzy_failures.py switch /tmp/t2f/seq/* --param image_border  # whole runs
+    python benchmarks/t2fuzzy_failures.py switch /tmp/t2f/seq/* --param image_border [...]  # whole runs
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
@@ -395,17 +395,18 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
             for method, (large, failures) in by_method.items()))
 
 
-def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> None:
-    """A switch of the trust check (``param``, a True/False field of
-    :class:`~stabilizer.verification.VerificationParams`) off and on, each method run whole
-    through the check (``t2fuzzy``'s second looks included, unlike :func:`margins`), frame by
-    frame on every ``stride``-th frame with a valid truth: per method, the ``"ok"`` estimates
-    and those off by more than 5 deg or 10 px with each setting; the ``"ok"`` estimates lost
-    and gained by switching on, and how many of them lay within 1 deg and 2 px of the truth or
-    beyond 5 deg or 10 px; how many ``"ok"`` estimates both settings give but differently; and
-    each frame off by more than 5 deg or 10 px with either setting."""
+def switch(folders: list[Path], methods: list[str], stride: int, params: list[str]) -> None:
+    """Switches of the trust check (``params``, True/False fields of
+    :class:`~stabilizer.verification.VerificationParams`) all off and all on, each method run
+    whole through the check (``t2fuzzy``'s second looks included, unlike :func:`margins`),
+    frame by frame on every ``stride``-th frame with a valid truth: per method, the ``"ok"``
+    estimates and those off by more than 5 deg or 10 px with each setting; the ``"ok"``
+    estimates lost and gained by switching on, and how many of them lay within 1 deg and 2 px
+    of the truth or beyond 5 deg or 10 px; how many ``"ok"`` estimates both settings give but
+    differently; and each frame off by more than 5 deg or 10 px with either setting."""
     from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
     from stabilizer.motion import wrap_angle_deg
+    from stabilizer.verification import VerificationParams
 
     def errors(motion, truth) -> np.ndarray | None:
         if not motion.ok:
@@ -420,13 +421,15 @@ def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> 
     def accurate(off) -> bool:
         return off is not None and off[0] <= 1.0 and max(off[1:]) <= 2.0
 
+    label = " + ".join(params)
+    settings = [VerificationParams(**dict.fromkeys(params, value)) for value in (False, True)]
     loaded = [(folder, _frames(folder)) for folder in folders]
     for method in methods:
         rows = []  # (sequence, frame, errors off, errors on)
         for folder, (frames, references, truth, truth_ok) in loaded:
             switched_off, switched_on = (
-                _estimates(frames, references, method, _check_params(param, value), stride)[0]
-                for value in (0.0, 1.0))
+                _estimates(frames, references, method, setting, stride)[0]
+                for setting in settings)
             name = folder.parent.name if folder.name == "sequence" else folder.name  # a suite's
             rows += [(name, index, errors(before, truth[index]),
                       errors(after, truth[index]))
@@ -434,7 +437,7 @@ def switch(folders: list[Path], methods: list[str], stride: int, param: str) -> 
                                                      switched_off, switched_on)
                      if truth_ok[index]]
         for setting, column in (("off", 2), ("on", 3)):
-            print(f"{method}, {param} {setting}: {sum(row[column] is not None for row in rows)} "
+            print(f"{method}, {label} {setting}: {sum(row[column] is not None for row in rows)} "
                   f"ok of {len(rows)}, {sum(large(row[column]) for row in rows)} off by more "
                   f"than {LARGE_ERROR_DEG:g} deg or {LARGE_ERROR_PX:g} px")
         for change, was, now in (("lost", 2, 3), ("gained", 3, 2)):
@@ -825,7 +828,8 @@ def main(argv: list[str] | None = None) -> int:
     switched.add_argument("--methods", nargs="+", default=["t2fuzzy", "ecc"])
     switched.add_argument("--stride", type=POSITIVE_INTEGER, default=2,
                           help="every n-th frame")
-    switched.add_argument("--param", default="image_border",
+    switched.add_argument("--param", nargs="+", default=["image_border"],
+                          help="switched off and on together",
                           choices=[field.name for field in dataclasses.fields(VerificationParams)
                                    if isinstance(field.default, bool)])
     reaching = commands.add_parser("grid-reach", help="the check's grid search against the truth")

@@ -10,8 +10,11 @@ it made, after the check: a Motion it returns is a new estimate, checked in its 
 first estimate that passed, it replaces the first if it passes and lines up the frames' depth
 edges at least as well (``verify_correlation``); one that passes but lines them up worse,
 beyond the check's offset limits of the first, is a rival: the estimate fails as
-``"ambiguous"`` (``VerificationParams.second_look_rivals``). After a rejected first estimate, it
-is the result if it passes. The estimator chooses where to look again: ``t2fuzzy`` at the
+``"ambiguous"`` (``VerificationParams.second_look_rivals``), as it does when such a second look,
+climbed by the method's own measure from the first estimate (its diagnostics'
+``second_look_from`` is the first estimate), is rejected only for the edges' preference
+(``"not_optimum"``, ``"ambiguous"``; ``VerificationParams.rejected_second_look_rivals``). After a
+rejected first estimate, it is the result if it passes. The estimator chooses where to look again: ``t2fuzzy`` at the
 estimates the check doubts, and from the check's own optimum at those it rejects as not at that
 optimum (:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`; docs/method.md, section 12,
 measures what the second chance lets through).
@@ -142,23 +145,30 @@ class Stabilizer:
         if again is None:
             return checked
         rechecked = self._verifier.check(measured, again)
+        params = self._verifier.params
         if not rechecked.ok:
             failed = rechecked.diagnostics.get("verify_failed", rechecked.status)
+            # Climbed by the method's own measure from a first estimate that passed, to beyond
+            # the limits, and rejected for the edges' preference alone: the measures disagree.
+            rival = (params.rejected_second_look_rivals and checked.ok
+                     and again.diagnostics.get("second_look_from") == checked.as_tuple()
+                     and failed in ("not_optimum", "ambiguous")
+                     and params.beyond_offset(again, checked))
         elif not checked.ok:  # a second look at a rejected estimate: kept if it passes
             return rechecked
         elif (rechecked.diagnostics["verify_correlation"]
               < checked.diagnostics["verify_correlation"]):
             failed = "edges"  # the new estimate passes, but lines the depth edges up worse
-            if (self._verifier.params.second_look_rivals
-                    and self._verifier.params.beyond_offset(again, checked)):
-                # Two motions beyond the offset limits of each other both pass: a rival.
-                return Motion.failed(UNVERIFIED, **dict(
-                    checked.diagnostics, verify_failed="ambiguous",
-                    unverified_motion=checked.as_tuple(), verify_candidate=again.as_tuple(),
-                    verify_candidate_correlation=rechecked.diagnostics["verify_correlation"],
-                    second_look=again.as_tuple(), second_look_failed=failed))
+            # Two motions beyond the offset limits of each other both pass: a rival.
+            rival = params.second_look_rivals and params.beyond_offset(again, checked)
         else:
             return rechecked
+        if rival:
+            return Motion.failed(UNVERIFIED, **dict(
+                checked.diagnostics, verify_failed="ambiguous",
+                unverified_motion=checked.as_tuple(), verify_candidate=again.as_tuple(),
+                verify_candidate_correlation=rechecked.diagnostics["verify_correlation"],
+                second_look=again.as_tuple(), second_look_failed=failed))
         return replace(checked, diagnostics=dict(checked.diagnostics, second_look=again.as_tuple(),
                                                  second_look_failed=failed))
 

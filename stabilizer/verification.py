@@ -215,6 +215,14 @@ class VerificationParams:
             ``"ambiguous"``: two motions that far apart both pass, and the method's measure
             and the edges disagree on which is right. Default True (docs/method.md, section 12,
             "A second look", "Rivals"); False: the estimate stands.
+        rejected_second_look_rivals: the same for a second look at an estimate that passed,
+            climbed by the method's own measure from that estimate (its ``second_look_from``)
+            to beyond ``max_offset_deg`` or ``max_offset_px`` of it, that the check rejects only
+            for the edges' preference (``"not_optimum"``: the edges' optimum lies nearer the
+            first estimate; or ``"ambiguous"``): the two measures disagree by more than the
+            limits, on frames (large turns past near furniture) where the edges' optimum may lie
+            between the two and neither can be trusted. Default True (docs/method.md, section
+            12, "Rejected rivals"); False: the estimate stands.
     """
 
     min_correlation: float = 0.40
@@ -243,6 +251,7 @@ class VerificationParams:
     far_margin: float = 0.03
     candidate_angles_deg: tuple[float, ...] = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
     second_look_rivals: bool = True
+    rejected_second_look_rivals: bool = True
     strong_edge_ridge: bool = True
     weighted_rivals: bool = True
     plain_shift_rivals: bool = False
@@ -270,6 +279,7 @@ class VerificationParams:
             check_number(name, getattr(self, name))
         check_angles("candidate_angles_deg", self.candidate_angles_deg)
         check_flag("second_look_rivals", self.second_look_rivals)
+        check_flag("rejected_second_look_rivals", self.rejected_second_look_rivals)
         check_flag("strong_edge_ridge", self.strong_edge_ridge)
         check_flag("weighted_rivals", self.weighted_rivals)
         check_flag("plain_shift_rivals", self.plain_shift_rivals)

@@ -262,6 +262,30 @@ def test_a_second_look_beyond_the_offset_limits_that_passes_makes_the_estimate_a
     assert without.diagnostics["second_look_failed"] == "edges"
 
 
+def test_a_second_look_beyond_the_offset_limits_rejected_for_the_edges_makes_it_ambiguous():
+    """Frames 193 (the reference) and 216 of the office walk with scene seed 2138 and the
+    paper-like gait (a development seed; docs/method.md, section 12, "Rejected rivals"): boxes
+    turned 15.1 degrees; `t2fuzzy` answers 6.8 degrees, which passes the check (the depth
+    edges' optimum lies between it and the truth, 2.3 degrees from it). Its second look climbs
+    to 14.1 degrees, 1.1 degrees from the truth, and the check rejects it as not at that
+    optimum: the method's measure and the edges disagree by more than the offset limits, and
+    the estimate fails as ambiguous. Without the rule it stood, 8.4 degrees off."""
+    reference, current = walking_frames("office_paper_like_2138", 193, 216)
+    truth = Motion(15.107582571250294, 29.80055987022429, -37.8723019271233)
+    result = stabilizer.Stabilizer(reference, "t2fuzzy").estimate(current)
+    assert result.status == "unverified" and result.diagnostics["verify_failed"] == "ambiguous"
+    assert result.diagnostics["second_look_failed"] == "not_optimum"
+    first, rival = (Motion(*result.diagnostics[key]) for key in ("unverified_motion",
+                                                                   "verify_candidate"))
+    assert abs(first.angle_deg - truth.angle_deg) > 5.0
+    assert abs(rival.angle_deg - truth.angle_deg) < 2.0
+    assert result.diagnostics["second_look"] == rival.as_tuple()
+    without = stabilizer.Stabilizer(reference, "t2fuzzy", verification=VerificationParams(
+        rejected_second_look_rivals=False)).estimate(current)
+    assert without.ok and without.as_tuple() == first.as_tuple()
+    assert without.diagnostics["second_look_failed"] == "not_optimum"
+
+
 @pytest.mark.parametrize("switch", [field.name for field in dataclasses.fields(VerificationParams)
                                     if isinstance(field.default, bool)])
 def test_every_switch_of_the_check_is_a_flag(switch):

@@ -244,6 +244,17 @@ def test_the_tuning_script_tables_a_recorded_sequence_and_refuses_folders_withou
     assert done.returncode == 0, done.stderr
     rows = [line for line in done.stdout.splitlines() if line.startswith("| cor_de_2001 |")]
     assert len(rows) == 6 and sum("| before |" in row for row in rows) == 2, done.stdout
+    # Two switches of the check, off together and on together, on every 10th frame.
+    done = subprocess.run([sys.executable, script, "switch", str(sequence), "--methods", "ecc",
+                           "--stride", "10", "--param", "image_border", "plain_shift_rivals"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    with open(sequence / "truth.csv", newline="") as file:
+        scored = sum(row["truth_status"] == "ok" for row in csv.DictReader(file)
+                     if int(row["frame"]) % 10 == 0)
+    for setting in ("off", "on"):
+        assert re.search(rf"^ecc, image_border \+ plain_shift_rivals {setting}: \d+ ok of "
+                         rf"{scored}, ", done.stdout, re.MULTILINE), done.stdout
     done = subprocess.run([sys.executable, script, "table", str(tmp_path / "nothing")],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.count("\n") == 1
