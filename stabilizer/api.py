@@ -4,20 +4,20 @@ Every method's estimate goes through the same steps: the frames' type and size a
 before any work (each method has a smallest image side, all share the largest,
 :data:`MAX_SIDE`); the method estimates; an ``"ok"`` estimate is then checked by the shared
 trust check (:class:`stabilizer.verification.Verifier`, docs/method.md section 11), so that
-``"ok"`` means the compensated current frame does line up with the reference. An estimator
-that has a ``second_look(current, checked) -> Motion | None`` method is offered every estimate
-it made, after the check: a Motion it returns is a new estimate, checked in its turn. After a
-first estimate that passed, it replaces the first if it passes and lines up the frames' depth
-edges at least as well (``verify_correlation``); one that passes but lines them up worse,
-beyond the check's offset limits of the first, is a rival: the estimate fails as
-``"ambiguous"`` (``VerificationParams.second_look_rivals``), as it does when such a second look,
-climbed by the method's own measure from the first estimate (its diagnostics'
-``second_look_from`` is the first estimate), is rejected only for the edges' preference
-(``"not_optimum"``, ``"ambiguous"``; ``VerificationParams.rejected_second_look_rivals``). After a
-rejected first estimate, it is the result if it passes. The estimator chooses where to look again: ``t2fuzzy`` at the
-estimates the check doubts, and from the check's own optimum at those it rejects as not at that
-optimum (:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`; docs/method.md, section 12,
-measures what the second chance lets through).
+``"ok"`` means the compensated current frame does line up with the reference. An estimator that
+has a ``second_look(current, checked) -> Motion | None`` method is offered every estimate it
+made, after the check: a Motion it returns is a new estimate, checked in its turn. After a first
+estimate that passed, it replaces the first if it passes and lines up the frames' depth edges at
+least as well (``verify_correlation``); one that passes but lines them up worse, beyond the
+check's offset limits of the first, is a rival: the estimate fails as ``"ambiguous"``
+(``VerificationParams.second_look_rivals``), as it does when such a second look, climbed by the
+method's own measure from the first estimate (its diagnostics' ``second_look_from`` is the first
+estimate), is rejected only for the edges' preference (``"not_optimum"``, ``"ambiguous"``;
+``VerificationParams.rejected_second_look_rivals``). After a rejected first estimate, it is the
+result if it passes. The estimator chooses where to look again: ``t2fuzzy`` at the estimates the
+check doubts, and from the check's own optimum at those it rejects as not at that optimum
+(:meth:`stabilizer.t2fuzzy.T2FuzzyEstimator.second_look`; docs/method.md, section 12, measures
+what the second chance lets through).
 
 ======================  ===========================================  ========================
 method                  estimator                                    smallest image side

@@ -218,10 +218,11 @@ class VerificationParams:
         rejected_second_look_rivals: the same for a second look at an estimate that passed,
             climbed by the method's own measure from that estimate (its ``second_look_from``)
             to beyond ``max_offset_deg`` or ``max_offset_px`` of it, that the check rejects only
-            for the edges' preference (``"not_optimum"``: the edges' optimum lies nearer the
-            first estimate; or ``"ambiguous"``): the two measures disagree by more than the
-            limits, on frames (large turns past near furniture) where the edges' optimum may lie
-            between the two and neither can be trusted. Default True (docs/method.md, section
+            for the edges' preference (``"not_optimum"``: the edges' own optimum lies beyond the
+            limits of it; or ``"ambiguous"``: they line up another motion as well): the two
+            measures disagree by more than the limits, on frames (large turns past near
+            furniture) where the edges' optimum may lie between the two and neither can be
+            trusted. Default True (docs/method.md, section
             12, "Rejected rivals"); False: the estimate stands.
     """
 
