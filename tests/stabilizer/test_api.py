@@ -239,51 +239,42 @@ def test_a_second_look_that_lines_the_edges_up_worse_leaves_the_first_estimate()
     assert result.diagnostics["second_look_failed"] == "edges"
 
 
-def test_a_second_look_beyond_the_offset_limits_that_passes_makes_the_estimate_ambiguous():
-    """Frames 283 (the reference) and 311 of the lab walk with scene seed 2028 and the
-    paper-like gait (a development seed of docs/method.md, section 12, "A second look"): the
-    truth turns by 6.8 degrees; `t2fuzzy` answers 0.6 degrees, where the depth edges line up
-    better (0.72) than at the truth (0.31), and passes the check. Its second look, 6.5 degrees,
-    passes too, 5.9 degrees from the first: two motions that far apart both pass, and the
-    estimate fails as ambiguous with the second look as its rival. Without the rule it stood,
-    6.3 degrees off."""
-    reference, current = walking_frames("lab_paper_like_2028", 283, 311)
-    truth = Motion(6.8455660001684535, 13.97872602132828, -6.995054018167615)
+@pytest.mark.parametrize("walk, frames, truth, switch, second_look_failed, rival_off_deg", [
+    # The lab, scene seed 2028, paper-like gait (docs/method.md, section 12, "Rivals"): the
+    # truth turns by 6.8 degrees; `t2fuzzy` answers 0.6 degrees, where the depth edges line up
+    # better (0.72) than at the truth (0.31), and passes the check. Its second look, 6.5
+    # degrees, passes too, but lines the edges up worse.
+    ("lab_paper_like_2028", (283, 311),
+     Motion(6.8455660001684535, 13.97872602132828, -6.995054018167615),
+     "second_look_rivals", "edges", 1.0),
+    # The office, scene seed 2138, paper-like gait (section 12, "Rejected rivals"): boxes
+    # turned 15.1 degrees; `t2fuzzy` answers 6.8 degrees, which passes the check (the edges'
+    # optimum lies between it and the truth, 2.3 degrees from it). Its second look climbs to
+    # 14.1 degrees, and the check rejects it as not at that optimum.
+    ("office_paper_like_2138", (193, 216),
+     Motion(15.107582571250294, 29.80055987022429, -37.8723019271233),
+     "rejected_second_look_rivals", "not_optimum", 2.0),
+])
+def test_a_second_look_beyond_the_offset_limits_makes_the_estimate_ambiguous(
+        walk, frames, truth, switch, second_look_failed, rival_off_deg):
+    """Frames of development walks where `t2fuzzy`'s first estimate, more than 5 degrees off,
+    passes the check and its second look, near the truth, lies beyond the check's offset
+    limits of it: the method's measure and the edges disagree, and the estimate fails as
+    ambiguous with the second look as its rival. Without the rule (``switch``) the first
+    estimate stood."""
+    reference, current = walking_frames(walk, *frames)
     result = stabilizer.Stabilizer(reference, "t2fuzzy").estimate(current)
     assert result.status == "unverified" and result.diagnostics["verify_failed"] == "ambiguous"
+    assert result.diagnostics["second_look_failed"] == second_look_failed
     first, rival = (Motion(*result.diagnostics[key]) for key in ("unverified_motion",
                                                                    "verify_candidate"))
     assert abs(first.angle_deg - truth.angle_deg) > 5.0
-    assert abs(rival.angle_deg - truth.angle_deg) < 1.0
+    assert abs(rival.angle_deg - truth.angle_deg) < rival_off_deg
     assert result.diagnostics["second_look"] == rival.as_tuple()
     without = stabilizer.Stabilizer(reference, "t2fuzzy", verification=VerificationParams(
-        second_look_rivals=False)).estimate(current)
+        **{switch: False})).estimate(current)
     assert without.ok and without.as_tuple() == first.as_tuple()
-    assert without.diagnostics["second_look_failed"] == "edges"
-
-
-def test_a_second_look_beyond_the_offset_limits_rejected_for_the_edges_makes_it_ambiguous():
-    """Frames 193 (the reference) and 216 of the office walk with scene seed 2138 and the
-    paper-like gait (a development seed; docs/method.md, section 12, "Rejected rivals"): boxes
-    turned 15.1 degrees; `t2fuzzy` answers 6.8 degrees, which passes the check (the depth
-    edges' optimum lies between it and the truth, 2.3 degrees from it). Its second look climbs
-    to 14.1 degrees, 1.1 degrees from the truth, and the check rejects it as not at that
-    optimum: the method's measure and the edges disagree by more than the offset limits, and
-    the estimate fails as ambiguous. Without the rule it stood, 8.4 degrees off."""
-    reference, current = walking_frames("office_paper_like_2138", 193, 216)
-    truth = Motion(15.107582571250294, 29.80055987022429, -37.8723019271233)
-    result = stabilizer.Stabilizer(reference, "t2fuzzy").estimate(current)
-    assert result.status == "unverified" and result.diagnostics["verify_failed"] == "ambiguous"
-    assert result.diagnostics["second_look_failed"] == "not_optimum"
-    first, rival = (Motion(*result.diagnostics[key]) for key in ("unverified_motion",
-                                                                   "verify_candidate"))
-    assert abs(first.angle_deg - truth.angle_deg) > 5.0
-    assert abs(rival.angle_deg - truth.angle_deg) < 2.0
-    assert result.diagnostics["second_look"] == rival.as_tuple()
-    without = stabilizer.Stabilizer(reference, "t2fuzzy", verification=VerificationParams(
-        rejected_second_look_rivals=False)).estimate(current)
-    assert without.ok and without.as_tuple() == first.as_tuple()
-    assert without.diagnostics["second_look_failed"] == "not_optimum"
+    assert without.diagnostics["second_look_failed"] == second_look_failed
 
 
 @pytest.mark.parametrize("switch", [field.name for field in dataclasses.fields(VerificationParams)
