@@ -6,7 +6,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py table   /tmp/t2f/seq/*          # before / after / ECC
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
-    python benchmarks/t2fuzzy_failures.py switch /tmp/t2f/seq/* --param image_border [...]  # whole runs
+    python benchmarks/t2fuzzy_failures.py switch  /tmp/t2f/seq/* --param A [B ...]  # whole runs
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's

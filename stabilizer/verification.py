@@ -222,8 +222,8 @@ class VerificationParams:
             limits of it; or ``"ambiguous"``: they line up another motion as well): the two
             measures disagree by more than the limits, on frames (large turns past near
             furniture) where the edges' optimum may lie between the two and neither can be
-            trusted. Default True (docs/method.md, section
-            12, "Rejected rivals"); False: the estimate stands.
+            trusted. Default True (docs/method.md, section 12, "Rejected rivals"); False: the
+            estimate stands.
     """
 
     min_correlation: float = 0.40

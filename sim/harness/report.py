@@ -211,7 +211,7 @@ def summary_markdown(*, scenario: Mapping, summary: RunSummary, meta: Mapping, s
     """The content of summary.md."""
     state = provenance()
     seed = meta.get("seed", scenario.get("seed"))
-    notes = [note for note in (cut_short_note(meta), unchecked_note(meta)) if note]
+    notes = run_notes(meta)
     lines = [
         f"# {_scenario_name(scenario, files.run_dir)}: stabilizer errors against the simulated "
         "ground truth",
@@ -281,6 +281,12 @@ def cut_short_note(meta: Mapping) -> str | None:
     return f"Note: the sequence's recording was cut short ({recorded['message']})."
 
 
+def run_notes(meta: Mapping) -> list[str]:
+    """The notes a run's summaries open with (:func:`cut_short_note`, :func:`unchecked_note`),
+    from its metrics.json ``run``; empty for a complete, checked run."""
+    return [note for note in (cut_short_note(meta), unchecked_note(meta)) if note]
+
+
 def unchecked_note(meta: Mapping) -> str | None:
     """The note that the methods' estimates were scored without the trust check
     (``egostab score --no-check``); None when they passed it, as in every other run."""
@@ -301,9 +307,8 @@ def terminal_summary(metrics: Mapping, run_dir: str | Path | None = None) -> str
     summary = RunSummary.from_dict(metrics["summary"])
     lines = [f"Run {metrics['status']}: {summary.n_frames} frames.", "", table_one(summary.run),
              "", epe_table(summary.run), "", reliability_table(summary.run)]
-    for note in (cut_short_note(metrics.get("run", {})), unchecked_note(metrics.get("run", {}))):
-        if note:
-            lines += ["", note]
+    for note in run_notes(metrics.get("run", {})):
+        lines += ["", note]
     kept = _run_on_disk(run_dir) if run_dir is not None else None
     if kept is not None and kept.get("run", {}).get("wall_time_s") != metrics.get(
             "run", {}).get("wall_time_s"):
