@@ -10,12 +10,10 @@ sequence's ``exact/`` folder (no noise, every surface measured). One row per fra
 the truth's residual, the estimate's end-point error against the floor the rigid truth leaves
 (the run's frames.csv), then for each depth the check's verdict on the estimate and on the truth
 (``ok`` or the test that failed) and how far, in rotation, the optimum of the depth edges that
-the check climbed to from the estimate lies from the truth; on the sensor's depth, the verdict
-of the stricter check on the estimate too (``VerificationParams(plain_shift_rivals=True)``,
-docs/method.md, section 11, "Both measures"). A truth that fails where the estimate passes says
-the check's edges do not line up at the truth; the exact depth tells whether the sensor (noise,
-unmeasured surfaces) is why. docs/suites.md reports it for the maintainers' checks. With
-``--figures DIR``, one picture per frame (:func:`picture`).
+the check climbed to from the estimate lies from the truth. A truth that fails where the
+estimate passes says the check's edges do not line up at the truth; the exact depth tells
+whether the sensor (noise, unmeasured surfaces) is why. docs/suites.md reports it for the
+maintainers' checks. With ``--figures DIR``, one picture per frame (:func:`picture`).
 """
 
 from __future__ import annotations
@@ -59,7 +57,7 @@ def looked_at(suite_dir: Path) -> list[dict]:
     from sim.harness.suite.tables import TABLE_JSON
     from sim.harness.sweep import RUNS_FOLDER
     from stabilizer import Motion
-    from stabilizer.verification import VerificationParams, Verifier
+    from stabilizer.verification import Verifier
 
     listed = json.loads((suite_dir / TABLE_JSON).read_text(encoding="utf-8"))["large_errors"]
     found = []
@@ -89,8 +87,6 @@ def looked_at(suite_dir: Path) -> list[dict]:
                     "estimate": _verdict(on_estimate), "truth": _verdict(on_truth),
                     "optimum_off_truth_deg": _turn_between(
                         on_estimate.diagnostics["verify_optimum"], truth.angle_deg)}
-            stricter = Verifier(reference.disparity8, VerificationParams(plain_shift_rivals=True))
-            result["sensor"]["stricter"] = _verdict(stricter(current.disparity8, estimate))
             found.append(result)
     return found
 
@@ -166,8 +162,6 @@ def table(found: list[dict]) -> str:
     for depth in ("Sensor", "Exact"):
         header += [f"{depth}: estimate", f"{depth}: truth",
                    f"{depth}: edges' optimum off the truth (deg)"]
-        if depth == "Sensor":
-            header.append("Sensor: estimate, stricter check")
     rows = []
     for row in found:
         cells = [row["method"], row["sequence"], str(row["frame"]),
@@ -176,8 +170,6 @@ def table(found: list[dict]) -> str:
         for depth in ("sensor", "exact"):
             cells += [row[depth]["estimate"], row[depth]["truth"],
                       f"{row[depth]['optimum_off_truth_deg']:.1f}"]
-            if depth == "sensor":
-                cells.append(row[depth]["stricter"])
         rows.append(cells)
     return markdown_table(header, rows)
 

@@ -158,8 +158,7 @@ class VerificationParams:
             structure alone and correlates higher than the truth, whose overlap holds near
             furniture's parallax too (docs/method.md, section 11, "Repeated structures").
             Default True; False: the unweighted correlations alone decide.
-        plain_shift_rivals: a stricter check, for whom a wrong ``"ok"`` costs more than a
-            failure. A peak of test 5's weighted shift surface beyond the offset limits
+        plain_shift_rivals: a peak of test 5's weighted shift surface beyond the offset limits
             (:meth:`Verifier.shift_rival`) that scores below the margin there is then a rival
             still when its plain masked NCC, not weighted, exceeds the best plain NCC within
             the limits: it lines up less of the frames, and better; where the two measures
@@ -167,10 +166,10 @@ class VerificationParams:
             with ``weighted_rivals``. The weight is for a repeated structure lined up one
             period off, whose smaller overlap correlates higher than the truth; but a wrong
             shift whose overlap keeps more of a smooth wall and floor can outscore, weighted,
-            the truth that lines up the furniture's edges better. Default False: on the walks
-            the methods are tuned and checked on, it failed accurate estimates far more often
-            than wrong ones (docs/method.md, section 11, "Both measures"); True: the stricter
-            check.
+            the truth that lines up the furniture's edges better. Default True, with
+            ``image_border`` (docs/method.md, section 11, "Both measures" and "The image's
+            borders": alone, with the borders' creases, it failed accurate estimates far more
+            often than wrong ones); False: the weighted surface alone decides.
         image_border: the frame ends at the image's borders as at invalid pixels: the
             smoothing is the normalised convolution there too, and the pixels within 1.5
             ``sigma_px`` of a border are left out of the edges (:func:`edge_images`). Otherwise
@@ -178,7 +177,7 @@ class VerificationParams:
             disparity into a crease along the border: a depth step of the frame's own, the same
             in every frame, that lines up without any motion and can pin an estimate of no
             motion down where the scene does not (docs/method.md, section 11, "The image's
-            borders"). Default False; True: the borders left out.
+            borders"). Default True; False: the frame reflected at its borders.
         depth_tolerance_levels, depth_tolerance_share, depth_tolerance_noise: a pixel of the
             compensated current frame disagrees in depth with the reference when its disparity
             lies more than the larger of the first two (gray levels; a share of its own
@@ -255,8 +254,8 @@ class VerificationParams:
     rejected_second_look_rivals: bool = True
     strong_edge_ridge: bool = True
     weighted_rivals: bool = True
-    plain_shift_rivals: bool = False
-    image_border: bool = False
+    plain_shift_rivals: bool = True
+    image_border: bool = True
 
     def __post_init__(self):
         # Every test compares with these: a NaN would switch one off silently.

@@ -99,8 +99,7 @@ def test_ok_but_off_checks_again_the_frames_a_suite_lists(tmp_path):
     for depth in ("sensor", "exact"):
         assert found[depth]["estimate"] != "ok" and found[depth]["truth"] == "ok"
         assert found[depth]["optimum_off_truth_deg"] < 1.0
-    assert found["sensor"]["stricter"] != "ok"  # it fails whatever the default check fails
-    assert "| mine | " in script.table([found]) and "stricter check |" in script.table([found])
+    assert "| mine | " in script.table([found])
 
     # The picture: reference, current, then the overlays; the one at the truth lines the frames
     # up (gray), the one at the estimate turned 8 degrees does not (magenta and green apart).

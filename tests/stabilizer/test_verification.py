@@ -48,6 +48,12 @@ WITHOUT_DEPTH = VerificationParams(max_depth_disagreement=1.0)
 #: The check without its tests of the frames' depths (test 4, and test 7 of the far depths), to
 #: show the shift search on unrelated frames that these fail first.
 WITHOUT_DEPTHS = VerificationParams(max_depth_disagreement=1.0, max_far_offset_px=math.inf)
+#: The check with the smoothing reflected at the image's borders (``image_border=False``), with
+#: which the cases of the tests that use it were found. On their small frames the band the
+#: default leaves out along the borders changes which test fails the wrong estimate first (or
+#: the estimate's optimum moves within the offset limits); each such test shows its rule with
+#: this check and that the default one fails the wrong estimate too.
+REFLECTED = VerificationParams(image_border=False)
 
 
 def test_the_true_motion_passes_with_its_measurements():
@@ -103,10 +109,17 @@ def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
     move by 10-15 px: the uncompensated frame lines the edges up as well as the truth does, but
     disagrees in depth on a fifth of the pixels. Frames 31 (the reference) and 68 of the
     corridor walk `python benchmarks/t2fuzzy_failures.py record` makes with the default gait
-    and tuning scene seed 2003; the truth is the recorded one."""
+    and tuning scene seed 2003; the truth is the recorded one. The edges line up without motion
+    here with the smoothing reflected at the image's borders (``image_border=False``), whose
+    creases are the same in both frames; without them (the default) the uncompensated frame
+    correlates far below the truth, and the depths are not needed to tell."""
     reference, current = walking_frames("corridor_2003", 31, 68)
     truth = Motion(1.2659547710090397, 11.757387012140912, -10.569362345927729)
-    params = VerificationParams()
+    bordered = Verifier(reference)(current, truth)
+    assert bordered.ok
+    assert (bordered.diagnostics["verify_null_correlation"]
+            < bordered.diagnostics["verify_optimum_correlation"] - 0.2)
+    params = VerificationParams(image_border=False)
     checked = Verifier(reference, params)(current, truth)
     assert checked.ok, checked.diagnostics
     measured = checked.diagnostics
@@ -176,8 +189,12 @@ def test_the_far_depths_are_those_at_or_below_the_median_of_the_measured_dispari
     far = Verifier(reference)._reference_far
     assert far is not None
     # At half resolution (72 rows): the far wall's 20 columns and the 2 of the nearer wall
-    # within the smoothing's reach of its edge; none by the unmeasured columns.
-    assert far.n_valid == 22 * 72
+    # within the smoothing's reach of its edge, none by the unmeasured columns, less the band
+    # within 1.5 sigma_px of the image's borders (2 columns on the left, 2 rows at the top and
+    # 1 at the bottom; `image_border`).
+    assert far.n_valid == (22 - 2) * (72 - 3)
+    assert Verifier(reference, VerificationParams(image_border=False))._reference_far.n_valid \
+        == 22 * 72
 
 
 def test_an_estimate_away_from_the_optimum_fails():
@@ -302,7 +319,8 @@ def test_a_sideways_estimate_between_unrelated_scenes_on_one_floor_is_ambiguous(
     checked = Verifier(reference, WITHOUT_DEPTHS)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
-    assert abs(rival.dx - sideways.dx) > 10.0 and abs(rival.dy - sideways.dy) < 3.0
+    assert (abs(rival.dx - sideways.dx) > VerificationParams().max_offset_px
+            and abs(rival.dy - sideways.dy) < 3.0)
     assert Verifier(reference)(current, sideways).status == UNVERIFIED
 
 
@@ -316,9 +334,10 @@ def test_a_sideways_estimate_along_a_ridge_without_a_second_peak_is_ambiguous(se
     seed 5, where `t2fuzzy` returned these motions): the overlap holds little but the floor's
     horizon, so the edge correlation is as high a few pixels farther along it; with no second
     peak, only the ridge test fails the estimate (it passes with the test switched off by a
-    negative margin)."""
+    negative margin). Shown with the smoothing reflected at the borders (:data:`REFLECTED`)."""
     reference, current = floor_scenes(seeds, shape)
-    checked = Verifier(reference)(current, sideways)
+    assert Verifier(reference)(current, sideways).status == UNVERIFIED
+    checked = Verifier(reference, REFLECTED)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is True
     lead = (checked.diagnostics["verify_shift_correlation"]
@@ -333,7 +352,7 @@ def test_a_sideways_estimate_along_a_ridge_without_a_second_peak_is_ambiguous(se
     np.testing.assert_allclose(shift, np.round(shift), rtol=0, atol=1e-9)
     assert np.abs(shift).max() >= 1.0
     # (The grid search's candidate, weighted by the edges its overlap holds, is a rival too.)
-    without = VerificationParams(ridge_margin=-1.0, weighted_rivals=False)
+    without = replace(REFLECTED, ridge_margin=-1.0, weighted_rivals=False)
     assert Verifier(reference, without)(current, sideways).ok
 
 
@@ -347,10 +366,11 @@ def test_a_ridge_that_runs_out_of_overlap_is_ambiguous(seeds, shape, sideways):
     and holds only the floor's crease, so the shifts farther along it cannot be scored. Not shown
     to score lower, they fail the estimate; where they can be scored (a smaller `min_overlap`),
     the ridge goes on within `ridge_margin`. (The far depths, out of line, may fail the estimate
-    first; the shift search is shown with that test switched off.)"""
+    first; the shift search is shown with that test switched off, and the smoothing reflected at
+    the borders, :data:`REFLECTED`.)"""
     reference, current = floor_scenes(seeds, shape)
     assert Verifier(reference)(current, sideways).status == UNVERIFIED
-    without_far = VerificationParams(max_far_offset_px=math.inf)
+    without_far = replace(REFLECTED, max_far_offset_px=math.inf)
     checked = Verifier(reference, without_far)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is True
@@ -367,10 +387,14 @@ def test_a_shift_that_only_the_weak_responses_pin_down_is_ambiguous():
     floor. The camera moved 16 px sideways; `t2fuzzy` answered 1 px. Every edge response (the
     wall's noise and its one-level contours, which the camera's own geometry places) pins the
     shift down there, by a little more than `ridge_margin`; the strong edges, the floor's crease
-    alone, do not pin it at all: the estimate is ambiguous, and passed without that test."""
+    alone, do not pin it at all: the estimate is ambiguous, and passed without that test. Shown
+    with the smoothing reflected at the borders (:data:`REFLECTED`), whose creases line the
+    frames up where the camera did not move; without them (the default) the edges correlate
+    below ``min_correlation`` at the estimate, which fails first."""
     reference, current = walking_frames("office_paper_like_2131", 613, 628)
     estimate = Motion(0.1745, -1.058, -1.200)
-    checked = Verifier(reference)(current, estimate)
+    assert Verifier(reference)(current, estimate).diagnostics["verify_failed"] == "correlation"
+    checked = Verifier(reference, REFLECTED)(current, estimate)
     assert checked.diagnostics["verify_failed"] == "ambiguous"
     assert checked.diagnostics["verify_ridge"] is checked.diagnostics["verify_ridge_on_steps"] \
         is True
@@ -379,8 +403,8 @@ def test_a_shift_that_only_the_weak_responses_pin_down_is_ambiguous():
     assert lead < VerificationParams().ridge_margin
     rival = Motion(*checked.diagnostics["verify_candidate"])  # along the crease
     assert abs(rival.dx - estimate.dx) > 1.5 and abs(rival.dy - estimate.dy) < 0.1
-    for without in (VerificationParams(strong_edge_ridge=False),
-                    VerificationParams(edge_floor_levels=0.0)):
+    for without in (replace(REFLECTED, strong_edge_ridge=False),
+                    replace(REFLECTED, edge_floor_levels=0.0)):
         assert Verifier(reference, without)(current, estimate).ok
 
 
@@ -484,25 +508,28 @@ def test_a_turn_beyond_the_searched_angles_without_a_convincing_optimum_is_ambig
 
 def test_plain_shift_rivals_fail_wrong_estimates_that_the_weighted_shifts_pass():
     """Where the weighted and the plain shift search at the estimate's rotation disagree,
-    ``plain_shift_rivals`` fails the estimate as ambiguous. Two wrong estimates the default
-    check passes: the first unrelated pair above with its turn among the searched angles
-    (another shift lines the edges up better, on less of the frames), and the office walk's
-    contours below without the floor (a shift 70 px the other way lines them up as well)."""
+    ``plain_shift_rivals`` fails the estimate as ambiguous. Two wrong estimates the check
+    passes without it, with the smoothing reflected at the borders (:data:`REFLECTED`) and
+    the tests that fail them first switched off: the first unrelated pair above with its turn
+    among the searched angles (another shift lines the edges up better, on less of the
+    frames), and the office walk's contours below without the floor (a shift 70 px the other
+    way lines them up as well). The default check fails both."""
     first = (stabilizer.depth_to_disparity(make_depth_scene(seed, (106, 207), n_objects=3,
                                                             floor=False))
              for seed in (1353811672, 2130526010))
-    wide = replace(WITHOUT_DEPTH,
+    wide = replace(REFLECTED, max_depth_disagreement=1.0,
                    candidate_angles_deg=(-45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0))
     cases = [(*first, Motion(-25.61, -15.48, -23.29), wide),
              (*walking_frames("office_2058", 883, 897), Motion(-1.369, 32.04, 3.97),
-              VerificationParams(edge_floor_levels=0.0))]
+              replace(REFLECTED, edge_floor_levels=0.0))]
     for reference, current, wrong, params in cases:
-        assert Verifier(reference, params)(current, wrong).ok
-        strict = replace(params, plain_shift_rivals=True)
-        checked = Verifier(reference, strict)(current, wrong).diagnostics
+        assert params.plain_shift_rivals
+        assert Verifier(reference, replace(params, plain_shift_rivals=False))(current, wrong).ok
+        checked = Verifier(reference, params)(current, wrong).diagnostics
         assert checked["verify_failed"] == "ambiguous" and checked["verify_plain_shift"] is True
         assert checked["verify_candidate_correlation"] > checked["verify_shift_correlation"]
         assert checked["verify_candidate"][0] == wrong.angle_deg
+        assert Verifier(reference)(current, wrong).status == UNVERIFIED
 
 
 def test_a_true_turn_beyond_the_searched_angles_passes_when_its_optimum_is_convincing():
@@ -521,7 +548,9 @@ def test_candidate_margin_is_how_much_worse_a_rival_may_be_and_still_fail_the_es
     assert lead > 0.02  # the rival is the better of the two here
 
     def checked(margin: float) -> Motion:
-        params = VerificationParams(candidate_margin=margin, weighted_rivals=False)
+        # The margin alone: no rival on another measure (weighted, or plain NCC).
+        params = VerificationParams(candidate_margin=margin, weighted_rivals=False,
+                                    plain_shift_rivals=False)
         return Verifier(reference, params)(current, wrong)
 
     assert checked(-lead + 0.01).diagnostics["verify_failed"] == "ambiguous"
@@ -554,16 +583,21 @@ def test_an_estimate_a_few_degrees_off_is_compared_with_the_grid_search(seed, n_
     benchmarks/trust_properties.py, seeds 208-224) whose optimum lies within the offset limits:
     the grid search finds a motion beyond them that lines the frames up as well, so the check
     cannot vouch for the estimate; the truth passes. (The climb to the optimum stays at half
-    resolution here, so that the grid search decides.)"""
+    resolution here, so that the grid search decides, and the smoothing is reflected at the
+    borders, :data:`REFLECTED`: without the band along them, the default, the estimate's
+    optimum lies beyond the offset limits itself, and test 3 fails it first.)"""
     reference = stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=n_objects,
                                                                floor=True))
     current = apply_motion(reference, Motion(*truth))
-    params = VerificationParams(full_resolution_offset_deg=math.inf)
+    params = replace(REFLECTED, full_resolution_offset_deg=math.inf)
     checked = Verifier(reference, params)(current, Motion(*wrong))
     assert checked.status == UNVERIFIED
     assert checked.diagnostics["verify_failed"] == "ambiguous"
     assert "verify_shift_correlation" not in checked.diagnostics  # the grid's rival
     assert Verifier(reference, params)(current, Motion(*truth)).ok
+    assert Verifier(reference)(current, Motion(*wrong)).diagnostics["verify_failed"] \
+        == "not_optimum"
+    assert Verifier(reference)(current, Motion(*truth)).ok
 
 
 @pytest.mark.parametrize("seed, n_objects, shape, truth, wrong", [
@@ -577,16 +611,20 @@ def test_an_optimum_the_half_resolution_climb_stops_short_of_is_found_at_full_re
     benchmarks/trust_properties.py, seeds 208-224): the half-resolution climb ends 1.9-2.9
     degrees from the estimate, within the offset limit; climbed on at full resolution, the
     optimum lies beyond it, and the estimate is not where the frames line up best. The truth
-    passes."""
+    passes. (Shown with the smoothing reflected at the borders, :data:`REFLECTED`; without the
+    band along them, the default, the half-resolution climb reaches beyond the limit itself.)"""
     reference = stabilizer.depth_to_disparity(make_depth_scene(seed, shape, n_objects=n_objects,
                                                                floor=True))
     current = apply_motion(reference, Motion(*truth))
-    checked = Verifier(reference)(current, Motion(*wrong))
+    checked = Verifier(reference, REFLECTED)(current, Motion(*wrong))
     assert checked.diagnostics["verify_failed"] == "not_optimum"
     assert checked.diagnostics["verify_offset_deg"] > VerificationParams().max_offset_deg
-    half_only = VerificationParams(full_resolution_offset_deg=math.inf,
-                                   full_resolution_travel_deg=math.inf)
+    half_only = replace(REFLECTED, full_resolution_offset_deg=math.inf,
+                        full_resolution_travel_deg=math.inf)
     assert Verifier(reference, half_only)(current, Motion(*wrong)).ok
+    assert Verifier(reference, REFLECTED)(current, Motion(*truth)).ok
+    assert Verifier(reference)(current, Motion(*wrong)).diagnostics["verify_failed"] \
+        == "not_optimum"
     assert Verifier(reference)(current, Motion(*truth)).ok
 
 
@@ -624,13 +662,17 @@ def test_a_candidate_whose_half_resolution_climb_goes_astray_is_climbed_at_full_
     resolution it stays at the truth, lines the edges up better than the estimate's optimum, and
     fails the estimate as ambiguous. (The floor applies on this synthetic scene of flat
     surfaces, whose median response is 0, and on its strong edges the estimate correlates
-    below ``min_correlation``: test 2 fails it first. Without the floor, test 5 does.)"""
+    below ``min_correlation``: test 2 fails it first. Without the floor, test 5 does.) Shown with
+    the smoothing reflected at the borders (:data:`REFLECTED`); without the band along them, the
+    default, the estimate's optimum lies beyond its offset limits, and test 3 fails it."""
     reference = stabilizer.depth_to_disparity(make_depth_scene(830496515, (129, 163),
                                                                n_objects=2, floor=True))
     truth, wrong = Motion(-9.02, -7.41, 12.42), Motion(-1.71, -5.65, 11.21)
     current = apply_motion(reference, truth)
-    assert Verifier(reference)(current, wrong).diagnostics["verify_failed"] == "correlation"
-    every_edge = VerificationParams(edge_floor_levels=0.0)
+    assert Verifier(reference)(current, wrong).diagnostics["verify_failed"] == "not_optimum"
+    assert Verifier(reference, REFLECTED)(current, wrong).diagnostics["verify_failed"] \
+        == "correlation"
+    every_edge = replace(REFLECTED, edge_floor_levels=0.0)
     checked = Verifier(reference, every_edge)(current, wrong)
     assert checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
@@ -648,17 +690,22 @@ def test_a_candidate_climb_that_ends_half_a_step_away_is_climbed_at_full_resolut
     grid's candidate, 10 degrees, climbs at half resolution to 7.0 degrees, within the
     estimate's offset limits; at full resolution it stays at 10.7 degrees, a rival within
     ``candidate_margin``: the estimate is ambiguous. With the earlier limit of a whole grid
-    step the candidate was not climbed again and the estimate passed."""
+    step the candidate was not climbed again and the estimate passed. Shown with the smoothing
+    reflected at the borders (:data:`REFLECTED`), with which the truth passes; without the band
+    along them, the default, the estimate is ambiguous too (the rival climbs to 10.1 degrees),
+    and the truth fails (its optimum lies 3.7 degrees away): the check cannot tell."""
     reference, current = walking_frames("office_2009", 253, 272)
     truth, estimate = (Motion(11.492632372346655, 41.104373417026004, -11.650465982096208),
                        Motion(6.2, 37.48, -10.27))
-    checked = Verifier(reference)(current, estimate)
+    checked = Verifier(reference, REFLECTED)(current, estimate)
     assert checked.diagnostics["verify_failed"] == "ambiguous"
     rival = Motion(*checked.diagnostics["verify_candidate"])
     assert abs(rival.angle_deg - truth.angle_deg) < 1.0
-    whole_step = VerificationParams(full_resolution_travel_deg=5.0)
+    whole_step = replace(REFLECTED, full_resolution_travel_deg=5.0)
     assert Verifier(reference, whole_step)(current, estimate).ok
-    assert Verifier(reference)(current, truth).ok
+    assert Verifier(reference, REFLECTED)(current, truth).ok
+    assert Verifier(reference)(current, estimate).diagnostics["verify_failed"] == "ambiguous"
+    assert Verifier(reference)(current, truth).diagnostics["verify_failed"] == "not_optimum"
 
 
 def test_a_search_that_agrees_with_the_optimum_is_not_climbed_again():
@@ -829,23 +876,23 @@ def test_the_image_border_adds_no_crease_to_a_planes_edges_with_image_border():
     assert not measured[band].any() and measured[~band].all()
 
 
-def test_a_still_estimate_that_the_image_borders_line_up_is_not_trusted_with_image_border():
+def test_a_still_estimate_that_the_image_borders_line_up_is_not_trusted():
     """The office of scene seed 2131 (`paper_like` gait, frames 643 and 658): a wall at a
     slant fills the view above the floor's crease, and the camera turned 2.3° and moved 16 px
-    sideways. `t2fuzzy` answered nearly no motion (0.44°, -0.45 px, -1.43 px). The creases the
-    smoothing makes at the image's borders are the same in both frames, and line up without
-    motion: with them the edges correlate 0.48 at the estimate and pin it down (0.45 without
-    any motion), and the check passed it. Without them (``image_border``) the frames'
-    structure correlates 0.32 there, below ``min_correlation``: the check cannot confirm it.
-    The truth fails either way."""
+    sideways. `t2fuzzy` answered nearly no motion (0.44°, -0.45 px, -1.43 px). The creases a
+    smoothing that reflects the frame at the image's borders makes (``image_border=False``) are
+    the same in both frames, and line up without motion: with them the edges correlate 0.48 at
+    the estimate and pin it down (0.45 without any motion), and the check passes it. Without
+    them (``image_border``, the default) the frames' structure correlates 0.32 there, below
+    ``min_correlation``: the check cannot confirm it. The truth fails either way."""
     reference, current = walking_frames("office_paper_like_2131", 643, 658)
     estimate, truth = Motion(0.4438, -0.4466, -1.4302), Motion(2.2571, 16.1094, -0.6140)
-    assert Verifier(reference)(current, estimate).ok
-    bordered = Verifier(reference, VerificationParams(image_border=True))
-    checked = bordered(current, estimate)
+    reflected = Verifier(reference, VerificationParams(image_border=False))
+    assert reflected(current, estimate).ok
+    checked = Verifier(reference)(current, estimate)
     assert checked.diagnostics["verify_failed"] == "correlation"
     assert checked.diagnostics["verify_correlation"] < 0.35
-    assert not bordered(current, truth).ok and not Verifier(reference)(current, truth).ok
+    assert not reflected(current, truth).ok and not Verifier(reference)(current, truth).ok
 
 
 def test_an_estimate_that_lines_up_a_walls_disparity_contours_is_not_trusted():
@@ -1004,12 +1051,14 @@ def test_unrelated_scenes_on_one_floor_lined_up_sideways_disagree_in_depth(seeds
     seeds 243 and 248, where `t2fuzzy` returned these motions and the check of the eleventh
     session passed them): the shift puts an object of one scene where the other has one at the
     same distance, a distinct peak of the edge correlation that no rival test fails; the
-    objects' depths differ, and the depth test fails the estimate (it passes without it)."""
+    objects' depths differ, and the depth test fails the estimate (with the smoothing reflected
+    at the borders, :data:`REFLECTED`, it passes without it)."""
     reference, current = floor_scenes(seeds, shape)
     checked = Verifier(reference)(current, sideways)
     assert checked.status == UNVERIFIED and checked.diagnostics["verify_failed"] == "depth"
     assert checked.diagnostics["verify_depth_disagreement"] > 0.1
-    assert Verifier(reference, WITHOUT_DEPTH)(current, sideways).ok
+    assert Verifier(reference, replace(REFLECTED, max_depth_disagreement=1.0))(current,
+                                                                              sideways).ok
 
 
 def disagreement(reference: np.ndarray, current: np.ndarray, motion: Motion,
