@@ -49,10 +49,10 @@ WITHOUT_DEPTH = VerificationParams(max_depth_disagreement=1.0)
 #: show the shift search on unrelated frames that these fail first.
 WITHOUT_DEPTHS = VerificationParams(max_depth_disagreement=1.0, max_far_offset_px=math.inf)
 #: The check with the smoothing reflected at the image's borders (``image_border=False``), with
-#: which the cases of the tests that use it were found. On their small frames the band the
-#: default leaves out along the borders changes which test fails the wrong estimate first (or
-#: the estimate's optimum moves within the offset limits); each such test shows its rule with
-#: this check and that the default one fails the wrong estimate too.
+#: which the cases of the tests that use it were found. Without the borders' creases, and with
+#: the band the default leaves out along the borders on their small frames, another test may
+#: fail a wrong estimate first; those tests show their rule with this check, and what the
+#: default check does with the same frames (it fails every wrong estimate among them).
 REFLECTED = VerificationParams(image_border=False)
 
 
@@ -110,7 +110,7 @@ def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
     disagrees in depth on a fifth of the pixels. Frames 31 (the reference) and 68 of the
     corridor walk `python benchmarks/t2fuzzy_failures.py record` makes with the default gait
     and tuning scene seed 2003; the truth is the recorded one. The edges line up without motion
-    here with the smoothing reflected at the image's borders (``image_border=False``), whose
+    here with the smoothing reflected at the image's borders (:data:`REFLECTED`), whose
     creases are the same in both frames; without them (the default) the uncompensated frame
     correlates far below the truth, and the depths are not needed to tell."""
     reference, current = walking_frames("corridor_2003", 31, 68)
@@ -119,7 +119,7 @@ def test_frames_whose_depths_moved_are_not_still_because_their_edges_stayed():
     assert bordered.ok
     assert (bordered.diagnostics["verify_null_correlation"]
             < bordered.diagnostics["verify_optimum_correlation"] - 0.2)
-    params = VerificationParams(image_border=False)
+    params = REFLECTED
     checked = Verifier(reference, params)(current, truth)
     assert checked.ok, checked.diagnostics
     measured = checked.diagnostics
@@ -193,8 +193,7 @@ def test_the_far_depths_are_those_at_or_below_the_median_of_the_measured_dispari
     # within 1.5 sigma_px of the image's borders (2 columns on the left, 2 rows at the top and
     # 1 at the bottom; `image_border`).
     assert far.n_valid == (22 - 2) * (72 - 3)
-    assert Verifier(reference, VerificationParams(image_border=False))._reference_far.n_valid \
-        == 22 * 72
+    assert Verifier(reference, REFLECTED)._reference_far.n_valid == 22 * 72
 
 
 def test_an_estimate_away_from_the_optimum_fails():
@@ -887,7 +886,7 @@ def test_a_still_estimate_that_the_image_borders_line_up_is_not_trusted():
     ``min_correlation``: the check cannot confirm it. The truth fails either way."""
     reference, current = walking_frames("office_paper_like_2131", 643, 658)
     estimate, truth = Motion(0.4438, -0.4466, -1.4302), Motion(2.2571, 16.1094, -0.6140)
-    reflected = Verifier(reference, VerificationParams(image_border=False))
+    reflected = Verifier(reference, REFLECTED)
     assert reflected(current, estimate).ok
     checked = Verifier(reference)(current, estimate)
     assert checked.diagnostics["verify_failed"] == "correlation"
