@@ -613,7 +613,8 @@ def flow_tiles(folder: Path, index: int, methods: list[str], grid: int = 3) -> N
     if climbed is None:
         print("nothing (ECC gave up)")
     else:
-        reference_edges = edge_image(reference.disparity8, params.sigma_px, params.clip_factor)
+        reference_edges = edge_image(reference.disparity8, params.sigma_px, params.clip_factor,
+                                     params.image_border)  # as the check's own
         correlation, _ = structure_correlation(*reference_edges, *edges.edges, climbed)
         print(f"{np.round(climbed.as_tuple(), 2)} (edge correlation {correlation:.3f})")
     motions = {"rigid truth": truth.motion}

@@ -292,11 +292,11 @@ class VerificationParams:
                 or math.hypot(motion.dx - other.dx, motion.dy - other.dy) > self.max_offset_px)
 
 
-def edge_image(image: np.ndarray, sigma_px: float,
-               clip_factor: float) -> tuple[np.ndarray, np.ndarray]:
+def edge_image(image: np.ndarray, sigma_px: float, clip_factor: float,
+               image_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, and where it is measured:
     :func:`edge_images` without a floor."""
-    edges, _, measured, _ = edge_images(image, sigma_px, clip_factor, 0.0)
+    edges, _, measured, _ = edge_images(image, sigma_px, clip_factor, 0.0, image_border)
     return edges, measured
 
 

@@ -873,6 +873,9 @@ def test_the_image_border_adds_no_crease_to_a_planes_edges_with_image_border():
     band = np.ones(wall.shape, bool)
     band[3:-3, 3:-3] = False  # 1.5 sigma of 2 px, as from an invalid pixel
     assert not measured[band].any() and measured[~band].all()
+    edges, measured_too = edge_image(wall, 2.0, 5.0, image_border=True)  # the same, no floor
+    np.testing.assert_array_equal(measured_too, measured)
+    np.testing.assert_array_equal(edges, edge_images(wall, 2.0, 5.0, 0.0, image_border=True)[0])
 
 
 def test_a_still_estimate_that_the_image_borders_line_up_is_not_trusted():
