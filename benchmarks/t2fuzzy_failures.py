@@ -7,6 +7,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py summary /tmp/t2f/seq/*          # one line per method
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
     python benchmarks/t2fuzzy_failures.py switch  /tmp/t2f/seq/* --param A [B ...]  # whole runs
+    python benchmarks/t2fuzzy_failures.py switch  /tmp/t2f/seq/* --param image_border --tie-break
     python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
@@ -395,17 +396,23 @@ def margins(folders: list[Path], methods: list[str], stride: int, values: list[f
             for method, (large, failures) in by_method.items()))
 
 
-def switch(folders: list[Path], methods: list[str], stride: int, params: list[str]) -> None:
+def switch(folders: list[Path], methods: list[str], stride: int, params: list[str],
+           tie_break: bool = False) -> None:
     """Switches of the trust check (``params``, True/False fields of
-    :class:`~stabilizer.verification.VerificationParams`) all off and all on, each method run
+    :class:`~stabilizer.verification.VerificationParams`) all off and all on (``tie_break``:
+    in the depth edges of ``t2fuzzy``'s tie-break, ``RotationSearch.edge_params``, the check
+    keeping its defaults), each method run
     whole through the check (``t2fuzzy``'s second looks included, unlike :func:`margins`),
     frame by frame on every ``stride``-th frame with a valid truth: per method, the ``"ok"``
     estimates and those off by more than 5 deg or 10 px with each setting; the ``"ok"``
     estimates lost and gained by switching on, and how many of them lay within 1 deg and 2 px
     of the truth or beyond 5 deg or 10 px; how many ``"ok"`` estimates both settings give but
     differently; and each frame off by more than 5 deg or 10 px with either setting."""
+    from unittest import mock
+
     from sim.harness.scoring import LARGE_ERROR_DEG, LARGE_ERROR_PX
     from stabilizer.motion import wrap_angle_deg
+    from stabilizer.t2fuzzy_refinements import RotationSearch
     from stabilizer.verification import VerificationParams
 
     def errors(motion, truth) -> np.ndarray | None:
@@ -421,15 +428,20 @@ def switch(folders: list[Path], methods: list[str], stride: int, params: list[st
     def accurate(off) -> bool:
         return off is not None and off[0] <= 1.0 and max(off[1:]) <= 2.0
 
-    label = " + ".join(params)
+    def estimates(frames, references, method, setting):
+        if not tie_break:
+            return _estimates(frames, references, method, setting, stride)[0]
+        with mock.patch.object(RotationSearch, "edge_params", setting):
+            return _estimates(frames, references, method, True, stride)[0]
+
+    label = " + ".join(params) + (" (the tie-break's edges)" if tie_break else "")
     settings = [VerificationParams(**dict.fromkeys(params, value)) for value in (False, True)]
     loaded = [(folder, _frames(folder)) for folder in folders]
     for method in methods:
         rows = []  # (sequence, frame, errors off, errors on)
         for folder, (frames, references, truth, truth_ok) in loaded:
-            switched_off, switched_on = (
-                _estimates(frames, references, method, setting, stride)[0]
-                for setting in settings)
+            switched_off, switched_on = (estimates(frames, references, method, setting)
+                                         for setting in settings)
             name = folder.parent.name if folder.name == "sequence" else folder.name  # a suite's
             rows += [(name, index, errors(before, truth[index]),
                       errors(after, truth[index]))
@@ -833,6 +845,8 @@ def main(argv: list[str] | None = None) -> int:
                           help="switched off and on together",
                           choices=[field.name for field in dataclasses.fields(VerificationParams)
                                    if isinstance(field.default, bool)])
+    switched.add_argument("--tie-break", action="store_true",
+                          help="switch them in t2fuzzy's tie-break edges, not in the check")
     reaching = commands.add_parser("grid-reach", help="the check's grid search against the truth")
     reaching.add_argument("folders", type=Path, nargs="+")
     reaching.add_argument("--stride", type=POSITIVE_INTEGER, default=3,
@@ -893,7 +907,7 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "rivals":
         rivals(sequences)
     elif args.command == "switch":
-        switch(sequences, args.methods, args.stride, args.param)
+        switch(sequences, args.methods, args.stride, args.param, args.tie_break)
     elif args.command == "grid-reach":
         grid_reach(sequences, args.stride)
     elif args.command == "stage6":

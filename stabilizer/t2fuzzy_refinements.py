@@ -462,6 +462,10 @@ class RotationSearch:
             the FNCC cannot (``edge_tie_margin``); None: they never do.
     """
 
+    #: The scales and borders of the depth edges that settle a tie (:meth:`_edge_tie_break`):
+    #: the trust check's defaults.
+    edge_params: VerificationParams = VerificationParams()
+
     def __init__(self, template: RotatedTemplate, coarse_template: RotatedTemplate,
                  refinements: Refinements, wide: WideSearch | None = None,
                  reference: np.ndarray | None = None):
@@ -486,7 +490,6 @@ class RotationSearch:
         self.shift_tolerance = float(refinements.max_shift_disagreement_px) / 2.0
         self.resolve_margin = float(refinements.resolve_margin)
         self.edge_tie_margin = float(refinements.edge_tie_margin)
-        self._edge_scales = VerificationParams()  # the trust check's scales of the edges
         self._reference = reference
         self._reference_edges: tuple[np.ndarray, np.ndarray] | None = None  # when first needed
         self.final_overlap_climb = bool(refinements.final_overlap_climb)
@@ -649,15 +652,16 @@ class RotationSearch:
                         current: np.ndarray) -> tuple[float, TemplateMatch, bool] | None:
         """Of two climbs whose FNCC peaks tie, the one whose motion lines up the frames' depth
         edges better by ``edge_tie_margin`` (:func:`~stabilizer.verification.edge_image` and
-        :func:`~stabilizer.verification.structure_correlation`, with the trust check's default
-        scales), or None."""
+        :func:`~stabilizer.verification.structure_correlation`, with :attr:`edge_params`), or
+        None."""
         if self._reference is None or not math.isfinite(self.edge_tie_margin):
             return None
-        scales = self._edge_scales
+        scales = self.edge_params
         if self._reference_edges is None:
             self._reference_edges = edge_image(self._reference, scales.sigma_px,
-                                               scales.clip_factor)
-        current_edges = edge_image(current, scales.sigma_px, scales.clip_factor)
+                                               scales.clip_factor, scales.image_border)
+        current_edges = edge_image(current, scales.sigma_px, scales.clip_factor,
+                                   scales.image_border)
         first, second = (structure_correlation(*self._reference_edges, *current_edges,
                                                Motion(angle, top.x, top.y))[0]
                          for angle, top, _ in climbs)

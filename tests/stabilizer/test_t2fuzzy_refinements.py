@@ -19,7 +19,8 @@ from stabilizer.t2fuzzy_refinements import (
     half_resolution_valid,
     translation_guess,
 )
-from stabilizer.testing import make_depth_scene
+from stabilizer.testing import corpus_frames, make_depth_scene
+from stabilizer.verification import VerificationParams
 from tests.stabilizer.walking_frames import walking_frames
 
 
@@ -406,6 +407,25 @@ def test_depth_edges_settle_two_climbs_whose_correlations_tie():
     assert search(Refinements(edge_tie_margin=np.inf))._edge_tie_break([right, wrong],
                                                                         current) is None
 
+
+
+def test_depth_edges_of_the_tie_break_end_at_the_frames_borders_as_the_checks_do():
+    """The tie-break makes its edges as the trust check does, with the frame ending at its
+    borders. A frame of the varied corpus with dropouts, moved by -3 degrees and (20, 6) px:
+    smoothing reflected at the borders (the creases of a slope running into them) lines the
+    frames up better unmoved than at the truth, by more than the margin; with the borders the
+    truth leads."""
+    reference, frames, motions = corpus_frames("invalid_pixels", 1, 3)
+    current, truth = frames[2], motions[2]
+    smoothed = _smoothed(reference)
+    right = (truth.angle_deg, TemplateMatch(truth.dx, truth.dy, 0.9, False, 0.9), True)
+    unmoved = (0.0, TemplateMatch(0.0, 0.0, 0.9, False, 0.9), True)
+    search = RotationSearch(RotatedTemplate(smoothed, 44), half_resolution_template(smoothed, 44),
+                            Refinements(), None, reference)
+    assert search._edge_tie_break([unmoved, right], current) is right
+    search.edge_params = VerificationParams(image_border=False)
+    search._reference_edges = None
+    assert search._edge_tie_break([unmoved, right], current) is unmoved
 
 def test_the_estimator_resolves_a_disagreement_only_when_asked_to():
     """Every estimate disagrees with the wide search at a 1e-6 px limit: without the
