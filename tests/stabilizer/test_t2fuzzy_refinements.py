@@ -408,13 +408,12 @@ def test_depth_edges_settle_two_climbs_whose_correlations_tie():
                                                                         current) is None
 
 
-
 def test_depth_edges_of_the_tie_break_end_at_the_frames_borders_as_the_checks_do():
     """The tie-break makes its edges as the trust check does, with the frame ending at its
-    borders. A frame of the varied corpus with dropouts, moved by -3 degrees and (20, 6) px:
-    smoothing reflected at the borders (the creases of a slope running into them) lines the
-    frames up better unmoved than at the truth, by more than the margin; with the borders the
-    truth leads."""
+    borders. A room of the varied corpus (floor and ceiling slopes, dropouts) moved by -3
+    degrees and (20, 6) px: smoothing reflected at the borders (creases where the slopes run
+    into them) lines the frames up better unmoved than at the truth, by more than the margin;
+    with the borders the truth leads."""
     reference, frames, motions = corpus_frames("invalid_pixels", 1, 3)
     current, truth = frames[2], motions[2]
     smoothed = _smoothed(reference)
