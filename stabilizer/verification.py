@@ -293,7 +293,7 @@ class VerificationParams:
 
 
 def edge_image(image: np.ndarray, sigma_px: float, clip_factor: float,
-               image_border: bool = False) -> tuple[np.ndarray, np.ndarray]:
+               image_border: bool) -> tuple[np.ndarray, np.ndarray]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, and where it is measured:
     :func:`edge_images` without a floor."""
     edges, _, measured, _ = edge_images(image, sigma_px, clip_factor, 0.0, image_border)
@@ -301,7 +301,7 @@ def edge_image(image: np.ndarray, sigma_px: float, clip_factor: float,
 
 
 def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
-                floor_levels: float, image_border: bool = False
+                floor_levels: float, image_border: bool
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """Clipped Laplacian of the Gaussian-smoothed disparity, the same without its weak
     responses, where they are measured, and whether the clip limit lies below the floor.
@@ -325,9 +325,10 @@ def edge_images(image: np.ndarray, sigma_px: float, clip_factor: float,
         ``strong``.
     image_border : bool
         The frame ends at its borders as at invalid pixels (the outside counts as invalid,
-        and the pixels within 1.5 ``sigma_px`` of a border are not measured); default False:
-        the smoothing reflects the frame at its borders (``cv2.BORDER_REFLECT_101``), and a
-        slope becomes a crease there.
+        and the pixels within 1.5 ``sigma_px`` of a border are not measured); False: the
+        smoothing reflects the frame at its borders (``cv2.BORDER_REFLECT_101``), and a slope
+        becomes a crease there. No default: callers pass their check's
+        (``VerificationParams.image_border``).
 
     Returns
     -------

@@ -459,7 +459,7 @@ def test_the_weighted_correlation_is_the_cosine_times_the_shares_the_overlap_hol
     """Unmoved, the weighted correlation is the correlation (the overlap holds every edge);
     shifted by half the frame, the overlap holds part of each frame's edges, and the weighted
     correlation is the cosine times the geometric mean of those shares."""
-    edges, measured = edge_image(REFERENCE, 2.0, 5.0)
+    edges, measured = edge_image(REFERENCE, 2.0, 5.0, image_border=False)
     assert structure_correlation(edges, measured, edges, measured, weighted=True)[0] == \
         pytest.approx(1.0)
     shift = Motion(0.0, 88.0, 0.0)
@@ -565,7 +565,8 @@ def noisy(image: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarr
 def test_the_search_finds_the_truth_on_its_angle_grid():
     """Independent of any estimate: the grid angle nearest the truth's 6 degrees, and the
     translation found after turning back by it within a pixel of the truth's."""
-    found = Verifier(REFERENCE).candidate(_half_resolution(*edge_image(CURRENT, 2.0, 5.0)))
+    edges = edge_image(CURRENT, 2.0, 5.0, image_border=VerificationParams().image_border)
+    found = Verifier(REFERENCE).candidate(_half_resolution(*edges))
     assert found.angle_deg == 5.0
     assert math.hypot(found.dx - TRUTH.dx, found.dy - TRUTH.dy) < 1.0
 
@@ -783,11 +784,12 @@ def test_a_shared_verifier_keeps_its_own_copy_of_the_reference():
 
 def test_edges_correlate_as_a_cosine_and_minus_1_where_no_edge_is_measured_in_both():
     params = VerificationParams()
-    edges = edge_image(REFERENCE, params.sigma_px, params.clip_factor)
+    edges = edge_image(REFERENCE, params.sigma_px, params.clip_factor, image_border=False)
     assert structure_correlation(*edges, *edges) == (pytest.approx(1.0), 1.0)
     negated = (-edges[0], edges[1])
     assert structure_correlation(*edges, *negated)[0] == pytest.approx(-1.0)
-    flat = edge_image(np.full_like(REFERENCE, 90), params.sigma_px, params.clip_factor)
+    flat = edge_image(np.full_like(REFERENCE, 90), params.sigma_px, params.clip_factor,
+                      image_border=False)
     assert not flat[0].any() and structure_correlation(*edges, *flat) == (-1.0, 1.0)
 
 
@@ -795,7 +797,7 @@ def test_the_overlap_is_the_share_of_the_reference_measured_in_both():
     # The reference measures the left half, the current frame the right three quarters: a
     # quarter of the frame is measured in both, half of the reference's measured pixels.
     params = VerificationParams()
-    edges, measured = edge_image(REFERENCE, params.sigma_px, params.clip_factor)
+    edges, measured = edge_image(REFERENCE, params.sigma_px, params.clip_factor, image_border=False)
     left, right = np.zeros_like(measured), np.zeros_like(measured)
     width = measured.shape[1]
     left[:, :width // 2] = 1
@@ -815,8 +817,8 @@ def test_a_one_level_step_responds_with_the_step_response_and_the_floor_is_in_it
         smoothed = cv2.GaussianBlur(frame.astype(np.float32), (13, 13), 2.0)
         laplacian = cv2.Laplacian(smoothed, cv2.CV_32F, ksize=3)
         assert np.abs(laplacian).max() == pytest.approx(levels * step_response(2.0), rel=1e-3)
-        edges, strong, measured, _ = edge_images(frame, 2.0, 5.0, 1.5)
-        plain, plain_measured = edge_image(frame, 2.0, 5.0)
+        edges, strong, measured, _ = edge_images(frame, 2.0, 5.0, 1.5, image_border=False)
+        plain, plain_measured = edge_image(frame, 2.0, 5.0, image_border=False)
         assert np.array_equal(edges, plain) and np.array_equal(measured, plain_measured)
         assert plain.any() and bool(strong.any()) is kept
         if kept:  # what passes the floor is unchanged
@@ -831,9 +833,10 @@ def test_the_floor_applies_only_where_the_clip_limit_lies_below_it():
     rng = np.random.default_rng(5)
     for noise, floored in ((4.0, False), (0.0, True)):
         frame = noisy(CURRENT, rng, noise) if noise else CURRENT
-        edges, strong, measured, said_floored = edge_images(frame, 2.0, 5.0, 1.5)
-        limit = 5.0 * np.median(np.abs(edge_images(frame, 2.0, 1e9, 0.0)[0][::2, ::2][
-            measured[::2, ::2] > 0]))
+        edges, strong, measured, said_floored = edge_images(frame, 2.0, 5.0, 1.5,
+                                                            image_border=False)
+        unclipped = edge_images(frame, 2.0, 1e9, 0.0, image_border=False)[0]
+        limit = 5.0 * np.median(np.abs(unclipped[::2, ::2][measured[::2, ::2] > 0]))
         assert bool(limit < 1.5 * step_response(2.0)) is floored is said_floored
         assert 0 < np.count_nonzero(strong) < np.count_nonzero(edges)
 
@@ -843,10 +846,10 @@ def test_the_contours_of_a_sloping_surface_are_no_strong_edges_and_a_depth_step_
     columns. Above the floor of 1.5 levels only the box's outline is left."""
     columns = np.mgrid[0:144, 0:176][1]
     wall = np.rint(36.0 + 0.03 * columns).astype(np.uint8)
-    contours, strong, _, _ = edge_images(wall, 2.0, 5.0, 1.5)
+    contours, strong, _, _ = edge_images(wall, 2.0, 5.0, 1.5, image_border=False)
     assert contours.any() and not strong.any()
     wall[50:90, 60:120] += 12  # a box 12 levels nearer
-    _, strong, _, _ = edge_images(wall, 2.0, 5.0, 1.5)
+    _, strong, _, _ = edge_images(wall, 2.0, 5.0, 1.5, image_border=False)
     # The smoothing (3 sigma) and the Laplacian reach 7 px from a step; at the frame's
     # borders the slope is reflected into a crease.
     outline = np.ones(wall.shape, bool)
@@ -866,7 +869,7 @@ def test_the_image_border_adds_no_crease_to_a_planes_edges_with_image_border():
     wall = np.rint(31.0 + 0.2 * columns).astype(np.uint8)  # 31-66 across, as a wall at a slant
     inner = np.zeros(wall.shape, bool)
     inner[8:-8, 8:-8] = True
-    _, strong, measured, _ = edge_images(wall, 2.0, 5.0, 1.5)
+    _, strong, measured, _ = edge_images(wall, 2.0, 5.0, 1.5, image_border=False)
     assert measured.all() and strong[~inner].any() and not strong[inner].any()
     _, strong, measured, _ = edge_images(wall, 2.0, 5.0, 1.5, image_border=True)
     assert not strong.any()
@@ -1023,7 +1026,7 @@ def test_edge_image_is_the_normalised_gaussian_convolution_as_documented():
     np.median for the clipping scale, on a frame with invalid pixels."""
     frame = noisy(CURRENT, np.random.default_rng(5), 4.0)
     frame[40:70, 20:60] = 0
-    edges, measured = edge_image(frame, 2.0, 5.0)
+    edges, measured = edge_image(frame, 2.0, 5.0, image_border=False)
     valid = (frame > 0).astype(np.float32)
     smoothed = (cv2.GaussianBlur(frame.astype(np.float32), (13, 13), 2.0)
                 / np.maximum(cv2.GaussianBlur(valid, (13, 13), 2.0), 1e-3))
