@@ -8,7 +8,7 @@ Three steps (docs/method.md, section 12, shows their output):
     python benchmarks/t2fuzzy_failures.py margins /tmp/t2f/seq/*          # the check's margins
     python benchmarks/t2fuzzy_failures.py switch  /tmp/t2f/seq/* --param A [B ...]  # whole runs
     python benchmarks/t2fuzzy_failures.py switch  /tmp/t2f/seq/* --param image_border --tie-break
-    python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # its cost
+    python benchmarks/t2fuzzy_failures.py overlap-climb /tmp/t2f/seq/*    # their cost
     python benchmarks/t2fuzzy_failures.py second-look /tmp/t2f/seq/*      # the second look's
     python benchmarks/t2fuzzy_failures.py astray-climb /tmp/t2f/seq/*     # the recovery's
     python benchmarks/t2fuzzy_failures.py rivals  /tmp/t2f/seq/*          # rival second looks
@@ -151,7 +151,8 @@ def summary(folders: list[Path], methods: list[str], stride: int,
             refinements: dict | None = None) -> None:
     """One line per method over every sequence, through the trust check: the mean over the
     sequences of the ok frames' mean errors and of the failure rates, the ok frames off by more
-    than 5 deg or 10 px, the process CPU ms per frame, and the count of each status.
+    than 5 deg or 10 px, the process CPU ms per frame, and the count of each status; then the
+    mean signed x and y errors of each sequence's ok frames (a bias against the rigid truth).
     ``refinements``: settings of :class:`~stabilizer.t2fuzzy_refinements.Refinements` for the
     ``t2fuzzy`` method (its defaults otherwise)."""
     from collections import Counter
@@ -176,6 +177,8 @@ def summary(folders: list[Path], methods: list[str], stride: int,
               f"{1e3 * seconds / n_frames:.2f} ms/frame (CPU), {n_frames} frames of "
               f"{len(folders)} sequences")
         print("   " + ", ".join(f"{name} {count}" for name, count in statuses.most_common()))
+        print("   signed x / y error, mean, sequence by sequence (px): " + ", ".join(
+            f"{row['signed'][0]:+.2f} / {row['signed'][1]:+.2f}" for row in rows))
 
 
 def rivals(folders: list[Path]) -> None:
@@ -236,12 +239,13 @@ def rivals(folders: list[Path]) -> None:
 
 def overlap_climb_time(folders: list[Path], stride: int) -> None:
     """Process CPU ms per frame of ``t2fuzzy`` (no trust check) with its defaults, with the
-    final climb on the whole overlap, and with that climb and no large template, the three
-    alternating frame by frame (docs/method.md, section 12)."""
+    final shift on the whole overlap, with the final climb there, and with that climb and no
+    large template, the four alternating frame by frame (docs/method.md, section 12)."""
     from stabilizer.t2fuzzy_refinements import Refinements
 
     _alternating_times(folders, stride, None, {
         "defaults": Refinements(),
+        "final_overlap_shift": Refinements(final_overlap_shift=True),
         "final_overlap_climb": Refinements(final_overlap_climb=True),
         "final_overlap_climb, large_template_border_px=0":
             Refinements(final_overlap_climb=True, large_template_border_px=0)})
@@ -509,7 +513,8 @@ def _summary(motions, truth, truth_ok) -> dict:
     errors[:, 0] = np.abs(errors[:, 0])
     large = (errors[:, 0] > LARGE_ERROR_DEG) | (errors[:, 1:] > LARGE_ERROR_PX).any(axis=1)
     return {"mean": errors.mean(axis=0), "max": errors.max(axis=0), "large": int(large.sum()),
-            "failures": float(np.mean(status != "ok"))}
+            "failures": float(np.mean(status != "ok")),
+            "signed": (estimates - truth)[scored, 1:].mean(axis=0)}
 
 
 def table(folders: list[Path]) -> None:
@@ -807,7 +812,8 @@ def main(argv: list[str] | None = None) -> int:
     overall.add_argument("--refinements", type=_setting, nargs="+", default=[],
                          metavar="NAME=VALUE",
                          help="t2fuzzy Refinements settings, e.g. final_overlap_climb=True")
-    timed = commands.add_parser("overlap-climb", help="t2fuzzy's time with the final climb")
+    timed = commands.add_parser("overlap-climb",
+                                help="t2fuzzy's time with the final shift and the final climb")
     timed.add_argument("folders", type=Path, nargs="+")
     timed.add_argument("--stride", type=POSITIVE_INTEGER, default=4, help="time every n-th frame")
     looked = commands.add_parser("second-look", help="t2fuzzy's time with its second look")

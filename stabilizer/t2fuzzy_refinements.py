@@ -185,6 +185,14 @@ class Refinements:
             Default False: on walking frames it makes the method about as accurate as the ECC
             peer (with ``large_template_border_px=0``, which it makes redundant), but costs
             about 2 ms a frame, a third more (docs/method.md, section 12).
+        final_overlap_shift: with the wide search, the shift of the search's estimate is
+            measured once more on the masked FNCC of the whole overlap at full resolution, at
+            its rotation and near its shift (:meth:`RotationSearch.shift_on_overlap`): the
+            shift half of ``final_overlap_climb``, at about half its cost; on walking frames it
+            takes most of the climb's gain in translation, little of its gain in rotation.
+            Default False, for the cost (docs/method.md, section 12, "A final shift on the
+            whole overlap"); with ``final_overlap_climb`` it changes nothing (the climb ends
+            on the whole overlap).
         doubtful_offset_deg: with the wide search and the trust check
             (:class:`stabilizer.Stabilizer`'s ``verification``), an estimate that passed the
             check but whose check optimum (``verify_offset_deg``) lies more than this many
@@ -228,14 +236,15 @@ class Refinements:
     clip_sigmas: float = 1.5
     clip_min_spread: float = 20.0
     final_overlap_climb: bool = False
+    final_overlap_shift: bool = False
     doubtful_offset_deg: float = 1.0
     climb_from_optimum: bool = True
     astray_climb_recovery: bool = True
 
     def __post_init__(self):
         for name in ("rotation_search", "search_without_estimates", "fail_unconverged",
-                     "resolve_disagreement", "final_overlap_climb", "climb_from_optimum",
-                     "astray_climb_recovery"):
+                     "resolve_disagreement", "final_overlap_climb", "final_overlap_shift",
+                     "climb_from_optimum", "astray_climb_recovery"):
             check_flag(name, getattr(self, name))
         for name in ("search_candidates", "wide_search_px", "large_template_border_px"):
             check_integer(name, getattr(self, name), 0)
@@ -493,13 +502,15 @@ class RotationSearch:
         self._reference = reference
         self._reference_edges: tuple[np.ndarray, np.ndarray] | None = None  # when first needed
         self.final_overlap_climb = bool(refinements.final_overlap_climb)
+        self.final_overlap_shift = bool(refinements.final_overlap_shift)
 
     def __call__(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
                  near: tuple[float, float] | None = None,
                  valid: np.ndarray | None = None) -> tuple[float, TemplateMatch, bool]:
         """The searched rotation, the FNCC match at it, and whether the climb ended at a local
         maximum of the correlation within ``max_rotation_deg``; with ``final_overlap_climb``,
-        a converged estimate climbed on the whole overlap (:meth:`climb_on_overlap`).
+        a converged estimate climbed on the whole overlap (:meth:`climb_on_overlap`), with
+        ``final_overlap_shift`` its shift measured there (:meth:`shift_on_overlap`).
 
         Args:
             angles: the rotation estimates of stage 4, degrees.
@@ -510,11 +521,14 @@ class RotationSearch:
                 it, or with ``near``, the wide search is not run.
         """
         angle, match, converged = self._search(angles, first_guess, image, near, valid)
-        if self.final_overlap_climb and converged and self.wide_shift is not None \
-                and np.isfinite(match.height):
+        if not (converged and self.wide_shift is not None and np.isfinite(match.height)):
+            return angle, match, converged
+        if self.final_overlap_climb:
             climbed = self.climb_on_overlap(angle, (match.x, match.y), image, valid)
             if climbed is not None:
                 angle, match = climbed
+        elif self.final_overlap_shift:
+            match = self.shift_on_overlap(angle, (match.x, match.y), image, valid) or match
         return angle, match, converged
 
     def _search(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
@@ -680,6 +694,15 @@ class RotationSearch:
             return None
         _, (angle, top, converged) = found
         return (angle, top) if converged else None
+
+    def shift_on_overlap(self, angle: float, shift: tuple[float, float], image: np.ndarray,
+                         valid: np.ndarray) -> TemplateMatch | None:
+        """The whole overlap's full-resolution match (:class:`OverlapNear`) at ``angle`` near
+        ``shift``: every pixel both frames measure fixes the shift, not only the central
+        template's; None when the correlation is undefined there."""
+        full_search = self.wide.near(half=False)
+        found = full_search.match(full_search.spectra(image, valid), angle, shift)
+        return found if np.isfinite(found.height) else None
 
     def _full_overlap_climb(self, angle: float, shift: tuple[float, float], image: np.ndarray,
                             valid: np.ndarray, max_steps: int | None = None

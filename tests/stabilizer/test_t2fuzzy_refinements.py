@@ -284,7 +284,7 @@ def test_off_is_the_paper_pipeline():
                                     {"extra_pass_trigger_deg": "5"}, {"wide_search_px": True},
                                     {"clip_sigmas": math.inf}, {"edge_tie_margin": -math.inf},
                                     {"doubtful_offset_deg": math.nan},
-                                    {"climb_from_optimum": 1},
+                                    {"climb_from_optimum": 1}, {"final_overlap_shift": 0},
                                     # Unbounded: the paper's pipeline's passes cycled for ever.
                                     {"common_disc_passes": 10**6}, {"extra_disc_passes": 10**6},
                                     {"search_max_steps": 10**9}])
@@ -476,6 +476,45 @@ def test_the_estimator_climbs_on_the_overlap_only_when_asked_to(monkeypatch):
                                   refinements=Refinements(final_overlap_climb=True))
     assert len(calls) == 1 and climbed.ok
     np.testing.assert_allclose(climbed.as_tuple(), truth.as_tuple(), atol=0.5)
+
+
+def test_the_final_overlap_shift_takes_a_shift_to_the_whole_overlaps_peak():
+    """At the true rotation, a shift 2-3 pixels off the truth, measured again on the whole
+    overlap, ends at the truth."""
+    truth = Motion(8.0, 10.0, -5.0)
+    search, image, current = _wide_search_setup(truth)
+    found = search.shift_on_overlap(truth.angle_deg, (truth.dx + 3.0, truth.dy - 2.0), image,
+                                    current > 0)
+    np.testing.assert_allclose((found.x, found.y), (truth.dx, truth.dy), atol=0.3)
+
+
+def test_the_estimator_measures_the_shift_on_the_overlap_only_when_asked_to(monkeypatch):
+    """Off by default; on, the converged search's shift is the whole overlap's, and the
+    estimate is the truth; with the final climb, which ends on the whole overlap, it is not
+    measured again."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
+    truth = Motion(4.0, 9.0, -6.0)
+    current = apply_motion(reference, truth)
+    shifts = []
+    shift = RotationSearch.shift_on_overlap
+
+    def counted(self, *args):
+        shifts.append(shift(self, *args))
+        return shifts[-1]
+
+    monkeypatch.setattr(RotationSearch, "shift_on_overlap", counted)
+    assert stabilizer.estimate(reference, current, verification=None).ok and shifts == []
+    shifted = stabilizer.estimate(reference, current, verification=None,
+                                  refinements=Refinements(final_overlap_shift=True))
+    assert len(shifts) == 1 and shifted.ok
+    assert (shifted.dx, shifted.dy) == (shifts[0].x, shifts[0].y)
+    np.testing.assert_allclose(shifted.as_tuple(), truth.as_tuple(), atol=0.5)
+    both = Refinements(final_overlap_shift=True, final_overlap_climb=True)
+    climbed = stabilizer.estimate(reference, current, verification=None,
+                                  refinements=Refinements(final_overlap_climb=True))
+    assert stabilizer.estimate(reference, current, verification=None,
+                               refinements=both).as_tuple() == climbed.as_tuple()
+    assert len(shifts) == 1
 
 
 def _speckled(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
