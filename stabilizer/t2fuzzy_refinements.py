@@ -183,16 +183,17 @@ class Refinements:
             own shift (:meth:`RotationSearch.climb_on_overlap`): every pixel both frames
             measure then fixes the motion, not only the central template's.
             Default False: on walking frames it makes the method about as accurate as the ECC
-            peer (with ``large_template_border_px=0``, which it makes redundant), but costs
-            about 2 ms a frame, a third more (docs/method.md, section 12).
+            peer (with ``large_template_border_px=0``, which it makes redundant), but adds
+            about 45% to the method's own time on them, 2-3.5 ms a frame (docs/method.md,
+            section 12).
         final_overlap_shift: with the wide search, the shift of the search's estimate is
             measured once more on the masked FNCC of the whole overlap at full resolution, at
             its rotation and near its shift (:meth:`RotationSearch.shift_on_overlap`): the
-            shift half of ``final_overlap_climb``, at about half its cost; on walking frames it
-            takes most of the climb's gain in translation, little of its gain in rotation.
-            Default False, for the cost (docs/method.md, section 12, "A final shift on the
-            whole overlap"); with ``final_overlap_climb`` it changes nothing (the climb ends
-            on the whole overlap).
+            shift half of ``final_overlap_climb``, at a third of its added time (about 17%);
+            on walking frames it takes most of the climb's gain in translation, little of its
+            gain in rotation. Default False, for the cost (docs/method.md, section 12, "A
+            final shift on the whole overlap"); with ``final_overlap_climb`` it changes
+            nothing (the climb ends on the whole overlap).
         doubtful_offset_deg: with the wide search and the trust check
             (:class:`stabilizer.Stabilizer`'s ``verification``), an estimate that passed the
             check but whose check optimum (``verify_offset_deg``) lies more than this many
@@ -465,7 +466,8 @@ class RotationSearch:
         coarse_template: the same at half resolution (:func:`half_resolution_template`).
         refinements: ``search_step_deg``, ``search_max_steps``, ``search_candidates``,
             ``max_rotation_deg``, ``large_template_border_px``, ``max_shift_disagreement_px``,
-            ``resolve_margin``, ``edge_tie_margin`` and ``astray_climb_recovery``.
+            ``resolve_margin``, ``edge_tie_margin``, ``astray_climb_recovery``,
+            ``final_overlap_climb`` and ``final_overlap_shift``.
         wide: the masked search of the whole overlap (:class:`WideSearch`), or None.
         reference: the reference frame itself, whose depth edges settle a disagreement that
             the FNCC cannot (``edge_tie_margin``); None: they never do.
