@@ -190,10 +190,11 @@ class Refinements:
             measured once more on the masked FNCC of the whole overlap at full resolution, at
             its rotation and near its shift (:meth:`RotationSearch.shift_on_overlap`): the
             shift half of ``final_overlap_climb``, at a third of its added time (about 17%);
-            on walking frames it takes most of the climb's gain in translation, little of its
-            gain in rotation. Default False, for the cost (docs/method.md, section 12, "A
-            final shift on the whole overlap"); with ``final_overlap_climb`` it changes
-            nothing (the climb ends on the whole overlap).
+            on walking frames it takes most of the climb's gain in y and in failures, little
+            of its gain in rotation, and loses a little in x on most walks, as the climb does.
+            Default False, for the cost (docs/method.md, section 12, "A final shift on the
+            whole overlap"); with ``final_overlap_climb`` it changes nothing (the climb ends
+            on the whole overlap).
         doubtful_offset_deg: with the wide search and the trust check
             (:class:`stabilizer.Stabilizer`'s ``verification``), an estimate that passed the
             check but whose check optimum (``verify_offset_deg``) lies more than this many
