@@ -456,20 +456,31 @@ def test_the_final_overlap_climb_takes_a_motion_to_the_whole_overlaps_peak():
     np.testing.assert_allclose((angle, match.x, match.y), truth.as_tuple(), atol=0.3)
 
 
+def _moved_scene() -> tuple[np.ndarray, np.ndarray, Motion]:
+    """A reference, the current frame and their motion, for the estimator's final steps."""
+    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
+    truth = Motion(4.0, 9.0, -6.0)
+    return reference, apply_motion(reference, truth), truth
+
+
+def _results_of(monkeypatch, name: str) -> list:
+    """What every later call of ``RotationSearch.<name>`` returns, in order."""
+    results = []
+    original = getattr(RotationSearch, name)
+
+    def kept(self, *args):
+        results.append(original(self, *args))
+        return results[-1]
+
+    monkeypatch.setattr(RotationSearch, name, kept)
+    return results
+
+
 def test_the_estimator_climbs_on_the_overlap_only_when_asked_to(monkeypatch):
     """Off by default; on, the converged search ends with the climb, and the estimate is the
     truth."""
-    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
-    truth = Motion(4.0, 9.0, -6.0)
-    current = apply_motion(reference, truth)
-    calls = []
-    climb = RotationSearch.climb_on_overlap
-
-    def counted(self, *args):
-        calls.append(args[0])
-        return climb(self, *args)
-
-    monkeypatch.setattr(RotationSearch, "climb_on_overlap", counted)
+    reference, current, truth = _moved_scene()
+    calls = _results_of(monkeypatch, "climb_on_overlap")
     default = stabilizer.estimate(reference, current, verification=None)
     assert calls == [] and default.ok
     climbed = stabilizer.estimate(reference, current, verification=None,
@@ -492,17 +503,8 @@ def test_the_estimator_measures_the_shift_on_the_overlap_only_when_asked_to(monk
     """Off by default; on, the converged search's shift is the whole overlap's, and the
     estimate is the truth; with the final climb, which ends on the whole overlap, it is not
     measured again."""
-    reference = stabilizer.depth_to_disparity(make_depth_scene(7))
-    truth = Motion(4.0, 9.0, -6.0)
-    current = apply_motion(reference, truth)
-    shifts = []
-    shift = RotationSearch.shift_on_overlap
-
-    def counted(self, *args):
-        shifts.append(shift(self, *args))
-        return shifts[-1]
-
-    monkeypatch.setattr(RotationSearch, "shift_on_overlap", counted)
+    reference, current, truth = _moved_scene()
+    shifts = _results_of(monkeypatch, "shift_on_overlap")
     assert stabilizer.estimate(reference, current, verification=None).ok and shifts == []
     shifted = stabilizer.estimate(reference, current, verification=None,
                                   refinements=Refinements(final_overlap_shift=True))
