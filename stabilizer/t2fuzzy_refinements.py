@@ -531,7 +531,9 @@ class RotationSearch:
             if climbed is not None:
                 angle, match = climbed
         elif self.final_overlap_shift:
-            match = self.shift_on_overlap(angle, (match.x, match.y), image, valid) or match
+            shifted = self.shift_on_overlap(angle, (match.x, match.y), image, valid)
+            if shifted is not None:
+                match = shifted
         return angle, match, converged
 
     def _search(self, angles: np.ndarray, first_guess: float, image: np.ndarray,
