@@ -255,6 +255,15 @@ def test_the_tuning_script_tables_a_recorded_sequence_and_refuses_folders_withou
     for setting in ("off", "on"):
         assert re.search(rf"^ecc, image_border \+ plain_shift_rivals {setting}: \d+ ok of "
                          rf"{scored}, ", done.stdout, re.MULTILINE), done.stdout
+    # A summary with a refinement of t2fuzzy's: its line, then the sequence's signed errors.
+    done = subprocess.run([sys.executable, script, "summary", str(sequence), "--methods",
+                           "t2fuzzy", "--stride", "10", "--refinements",
+                           "final_overlap_shift=True"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"^t2fuzzy: rotation / x / y \d\.\d{3} / \d\.\d{3} / \d\.\d{3}, ",
+                     done.stdout, re.MULTILINE), done.stdout
+    assert re.search(r"^   signed x / y error, mean, sequence by sequence \(px\): "
+                     r"[+-]\d\.\d\d / [+-]\d\.\d\d$", done.stdout, re.MULTILINE), done.stdout
     done = subprocess.run([sys.executable, script, "table", str(tmp_path / "nothing")],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.count("\n") == 1
